@@ -1,0 +1,161 @@
+"""Egocentric partial observations and the critic's global state (SPEC.md).
+
+Egocentric quantities (distance, bearing, velocity in the player's frame, relative heading) do not
+change under the point reflection between the teams' frames, so they are computed once in the world
+frame. Only absolute quantities (own position, heading, start point) are reflected for team 1.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from elevens.env.params import EnvParams
+from elevens.env.physics import team_signs
+from elevens.env.state import GlobalState, Observation, State
+
+
+@functools.lru_cache(maxsize=None)
+def entity_layout(players_per_team: int) -> tuple[np.ndarray, np.ndarray]:
+    """Static slot tables for a team size.
+
+    Returns ``(entity_index i32[2n, 2n], is_teammate f32[2n, 2n])``: for observer ``k`` (world
+    order), slot ``j`` shows entity ``entity_index[k, j]``, where entities ``0..2n-1`` are players
+    and ``2n`` is the ball. Slots: teammates in index order (self left out), opponents, the ball.
+    """
+    n = players_per_team
+    index = np.zeros((2 * n, 2 * n), np.int32)
+    teammate = np.zeros((2 * n, 2 * n), np.float32)
+    for team in range(2):
+        own = [team * n + i for i in range(n)]
+        other = [(1 - team) * n + i for i in range(n)]
+        for i, observer in enumerate(own):
+            mates = own[:i] + own[i + 1 :]
+            index[observer] = mates + other + [2 * n]
+            teammate[observer, : n - 1] = 1.0
+    return index, teammate
+
+
+def time_left(state: State, params: EnvParams) -> jax.Array:
+    """f32[]: 1 at reset, 0 when the episode is over."""
+    return jnp.clip(1.0 - state.step / params.episode_length, 0.0, 1.0)
+
+
+def observe(state: State, params: EnvParams) -> Observation:
+    """Every player's partial egocentric observation, in its team's frame.
+
+    state: one game (no batch axis; vmap for batches) -> Observation with leading axes [2, n].
+    """
+    n = params.players_per_team
+    num_players = 2 * n
+    index, teammate = entity_layout(n)
+    is_ball = np.zeros((num_players, num_players), np.float32)
+    is_ball[:, -1] = 1.0
+
+    entity_positions = jnp.concatenate([state.positions, state.ball_position[None]], axis=0)
+    entity_velocities = jnp.concatenate([state.velocities, state.ball_velocity[None]], axis=0)
+    cos_h, sin_h = jnp.cos(state.headings), jnp.sin(state.headings)
+    # The ball has no heading and no action: unit heading vector (1, 0) marks nothing, and its
+    # relative-heading and action features are zeroed below through is_ball.
+    entity_cos = jnp.concatenate([cos_h, jnp.ones(1)])
+    entity_sin = jnp.concatenate([sin_h, jnp.zeros(1)])
+    entity_actions = jnp.concatenate([state.last_actions, jnp.zeros((1, 2))], axis=0)
+
+    offset = entity_positions[index] - state.positions[:, None, :]  # f32[2n, 2n, 2]
+    distance = jnp.sqrt(jnp.sum(offset * offset, axis=-1))
+    safe = distance > 1e-6
+    unit = offset / jnp.where(safe, distance, 1.0)[..., None]
+    c, s = cos_h[:, None], sin_h[:, None]
+    # An entity exactly on the observer's centre lies straight ahead.
+    cos_bearing = jnp.where(safe, unit[..., 0] * c + unit[..., 1] * s, 1.0)
+    sin_bearing = jnp.where(safe, unit[..., 1] * c - unit[..., 0] * s, 0.0)
+    visible = cos_bearing >= jnp.cos(params.fov_half_angle)
+
+    velocity = entity_velocities[index]
+    vel_forward = velocity[..., 0] * c + velocity[..., 1] * s
+    vel_left = velocity[..., 1] * c - velocity[..., 0] * s
+    other_cos, other_sin = entity_cos[index], entity_sin[index]
+    not_ball = 1.0 - is_ball
+    cos_rel = (other_cos * c + other_sin * s) * not_ball
+    sin_rel = (other_sin * c - other_cos * s) * not_ball
+    actions = entity_actions[index]
+
+    entities = jnp.stack(
+        [
+            distance / params.field_length,
+            cos_bearing,
+            sin_bearing,
+            vel_forward,
+            vel_left,
+            cos_rel,
+            sin_rel,
+            actions[..., 0],
+            actions[..., 1],
+            jnp.broadcast_to(teammate, distance.shape),
+            jnp.broadcast_to(is_ball, distance.shape),
+        ],
+        axis=-1,
+    )
+    entities = jnp.where(visible[..., None], entities, 0.0)
+
+    sign = team_signs(params)[:, None]
+    extent = jnp.stack([jnp.asarray(params.half_length), jnp.asarray(params.half_width)])
+    ball = entities[:, -1, :]
+    self_features = jnp.concatenate(
+        [
+            jnp.broadcast_to(time_left(state, params), (num_players, 1)),
+            sign * state.positions / extent,
+            sign * cos_h[:, None],
+            sign * sin_h[:, None],
+            state.last_actions,
+            sign * state.start_positions / extent,
+            visible[:, -1:].astype(jnp.float32),
+            ball[:, :5],
+        ],
+        axis=-1,
+    )
+    return Observation(
+        self_features=self_features.reshape(2, n, -1),
+        entities=entities.reshape(2, n, num_players, -1),
+        entity_mask=visible.reshape(2, n, num_players),
+    )
+
+
+def global_state(state: State, params: EnvParams) -> GlobalState:
+    """The critic's full state from each team's view: leading axis [2] (team), own team first."""
+    n = params.players_per_team
+    extent = jnp.stack([jnp.asarray(params.half_length), jnp.asarray(params.half_width)])
+    sign = team_signs(params)[:, None]
+    players = jnp.concatenate(
+        [
+            sign * state.positions / extent,
+            sign * jnp.cos(state.headings)[:, None],
+            sign * jnp.sin(state.headings)[:, None],
+            sign * state.velocities,
+            state.last_actions,
+            sign * state.start_positions / extent,
+        ],
+        axis=-1,
+    )  # f32[2n, 10] world order; the team-1 rows are already in team 1's frame
+    # Team 1's view of team 0 is reflected too, and team 0's view of team 1 is in team 0's frame:
+    # flip the sign-carrying columns of the other team in each view.
+    sign_columns = jnp.asarray([1, 1, 1, 1, 1, 1, 0, 0, 1, 1], jnp.float32)
+    flip = 1.0 - 2.0 * sign_columns  # -1 on sign-carrying columns
+    own_team_first = []
+    for team in range(2):
+        own = players[team * n : (team + 1) * n]
+        other = players[(1 - team) * n : (2 - team) * n] * flip
+        rows = jnp.concatenate([own, other], axis=0)
+        teammate = jnp.concatenate([jnp.ones((n, 1)), jnp.zeros((n, 1))], axis=0)
+        own_team_first.append(jnp.concatenate([rows, teammate], axis=-1))
+    time = time_left(state, params)
+    contexts = [
+        jnp.concatenate(
+            [time[None], side * state.ball_position / extent, side * state.ball_velocity]
+        )
+        for side in (1.0, -1.0)
+    ]
+    return GlobalState(context=jnp.stack(contexts), players=jnp.stack(own_team_first))

@@ -1,0 +1,57 @@
+"""Goal reward and the temporary shaping terms (SPEC.md, thesis eq. 4.1)."""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from elevens.env.params import EnvParams
+
+
+class RewardTerms(NamedTuple):
+    goal: jax.Array  # f32[2, n] g
+    ball: jax.Array  # f32[2, n] w_b * b
+    approach: jax.Array  # f32[2, n] w_a * a
+
+    @property
+    def total(self) -> jax.Array:
+        return self.goal + self.ball + self.approach
+
+
+def _unit(vector: jax.Array) -> jax.Array:
+    norm = jnp.sqrt(jnp.sum(vector * vector, axis=-1, keepdims=True))
+    return vector / jnp.maximum(norm, 1e-6)
+
+
+def reward_terms(
+    goals: jax.Array,
+    ball_position: jax.Array,
+    ball_velocity: jax.Array,
+    player_velocities: jax.Array,
+    ball_position_before: jax.Array,
+    player_positions: jax.Array,
+    params: EnvParams,
+) -> RewardTerms:
+    """Per-player reward terms of one step.
+
+    goals i32[2] (who scored), ball_position/ball_velocity f32[2] after the ball moved,
+    player_velocities/player_positions f32[2n, 2] after the players moved, ball_position_before
+    f32[2] (where the players chased it this step) -> RewardTerms of f32[2, n].
+    """
+    n = params.players_per_team
+    goal_diff = (goals - goals[::-1]).astype(jnp.float32) * params.goal_reward  # f32[2]
+    goal = jnp.broadcast_to(goal_diff[:, None], (2, n))
+
+    opponent_goals = jnp.stack(
+        [jnp.stack([params.half_length, 0.0]), jnp.stack([-params.half_length, 0.0])]
+    )
+    towards_goal = jnp.sum(ball_velocity * _unit(opponent_goals - ball_position), axis=-1)
+    ball = jnp.broadcast_to((params.ball_shaping_weight * towards_goal)[:, None], (2, n))
+
+    towards_ball = jnp.sum(
+        player_velocities * _unit(ball_position_before - player_positions), axis=-1
+    )
+    approach = (params.approach_shaping_weight * towards_ball).reshape(2, n)
+    return RewardTerms(goal=goal, ball=ball, approach=approach)

@@ -1,0 +1,215 @@
+"""The Soccer env: pure ``reset(key, params)`` and ``step(key, state, actions, params)``.
+
+The env object holds only static structure (players per team); every number lives in EnvParams.
+``step`` reads as a paragraph: move, contacts, ball, goals, reward, respawn, observe.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+from jax.experimental import checkify
+
+from elevens.env import observe as observe_lib
+from elevens.env import physics
+from elevens.env.params import MAX_PLAYERS_PER_TEAM, EnvParams
+from elevens.env.reward import reward_terms
+from elevens.env.state import GlobalState, Observation, State, StepInfo
+
+SCENARIO = re.compile(r"^(\d+)v(\d+)$")
+
+
+class Soccer:
+    """A 2D soccer game of ``n`` against ``n`` players. Pure functions; jit and vmap freely.
+
+    Actions are ``f32[2, n, 2]`` (team, player, (move, rot)) in [-1, 1]; out-of-range values are
+    clipped and NaN counts as 0 (use ``step_checked`` to have them reported). Rewards are
+    ``f32[2, n]``. All episodes last ``params.episode_length`` steps, so a batch of games started
+    together ends together; ``step`` does not reset by itself after ``done``.
+    """
+
+    def __init__(self, players_per_team: int = 11):
+        EnvParams(players_per_team=players_per_team)  # validates
+        self.players_per_team = players_per_team
+
+    @property
+    def num_players(self) -> int:
+        return 2 * self.players_per_team
+
+    def default_params(self, **overrides: Any) -> EnvParams:
+        return EnvParams(players_per_team=self.players_per_team, **overrides)
+
+    def _check_params(self, params: EnvParams) -> None:
+        if params.players_per_team != self.players_per_team:
+            raise ValueError(
+                f"params.players_per_team={params.players_per_team} does not match this env "
+                f"({self.players_per_team} per team)"
+            )
+
+    def check_actions(self, actions: jax.Array) -> None:
+        """Raise ``ValueError`` if actions are not ``[2, n, 2]`` floats (shapes are static)."""
+        expected = (2, self.players_per_team, 2)
+        shape = tuple(getattr(actions, "shape", ()))
+        if shape != expected:
+            raise ValueError(
+                f"actions have shape {shape}, expected {expected} (team, player, (move, rot))"
+            )
+        if not jnp.issubdtype(actions.dtype, jnp.floating):
+            raise ValueError(f"actions have dtype {actions.dtype}, expected a float dtype")
+
+    # ------------------------------------------------------------------ reset
+    def reset(self, key: jax.Array, params: EnvParams) -> tuple[State, Observation]:
+        """Start an episode. key: a ``jax.random.key`` -> (State, Observation [2, n])."""
+        self._check_params(params)
+        state = physics.initial_state(key, params)
+        return state, self.observe(state, params)
+
+    # ------------------------------------------------------------------- step
+    def step(
+        self, key: jax.Array, state: State, actions: jax.Array, params: EnvParams
+    ) -> tuple[State, Observation, jax.Array, jax.Array, StepInfo]:
+        """One step of the game.
+
+        key: used only if a goal respawns everyone. actions f32[2, n, 2].
+        Returns (state, obs [2, n], rewards f32[2, n], done bool[], info). After a goal the
+        returned state and observation are the respawned ones.
+        """
+        state, rewards, done, info = self.transition(key, state, actions, params)
+        return state, self.observe(state, params), rewards, done, info
+
+    def transition(
+        self, key: jax.Array, state: State, actions: jax.Array, params: EnvParams
+    ) -> tuple[State, jax.Array, jax.Array, StepInfo]:
+        """``step`` without the observation: (state, rewards f32[2, n], done bool[], info).
+
+        Rollouts that observe the state they carry (``observe(state)`` at the top of a scan body)
+        use this, so XLA materialises the state instead of fusing physics into every observation
+        element (see PERFORMANCE_NOTES.md).
+        """
+        self._check_params(params)
+        self.check_actions(actions)
+        flat_actions = actions.reshape(self.num_players, 2).astype(jnp.float32)
+        flat_actions = jnp.clip(jnp.where(jnp.isnan(flat_actions), 0.0, flat_actions), -1.0, 1.0)
+
+        positions, headings = physics.move_players(
+            state.positions, state.headings, flat_actions, params
+        )
+        velocities = positions - state.positions
+        contacts = physics.ball_contacts(positions, headings, state.ball_position, params)
+        ball_velocity = physics.cap_speed(
+            state.ball_velocity + contacts.impulse, params.ball_max_speed
+        )
+        ball = physics.roll_ball(state.ball_position, ball_velocity, params)
+        terms = reward_terms(
+            ball.goals, ball.position, ball.velocity, velocities, state.ball_position, positions,
+            params,
+        )
+
+        scored = jnp.sum(ball.goals) > 0
+        respawn = physics.spawn(key, params)
+        step = state.step + 1
+        new_state = State(
+            positions=jnp.where(scored, respawn.positions, positions),
+            headings=jnp.where(scored, respawn.headings, headings),
+            velocities=jnp.where(scored, 0.0, velocities),
+            last_actions=flat_actions,
+            start_positions=jnp.where(scored, respawn.positions, state.start_positions),
+            ball_position=jnp.where(scored, respawn.ball_position, ball.position),
+            ball_velocity=jnp.where(scored, 0.0, ball.velocity),
+            score=state.score + ball.goals,
+            step=step,
+        )
+        done = step >= params.episode_length
+        info = StepInfo(
+            goals=ball.goals,
+            kicks=contacts.kicks,
+            pushes=contacts.pushes,
+            goal_reward=terms.goal,
+            ball_shaping=terms.ball,
+            approach_shaping=terms.approach,
+            truncated=done,
+        )
+        return new_state, terms.total, done, info
+
+    def step_checked(
+        self, key: jax.Array, state: State, actions: jax.Array, params: EnvParams
+    ) -> tuple[State, Observation, jax.Array, jax.Array, StepInfo]:
+        """``step`` that reports bad actions instead of clipping them silently.
+
+        Wrong shapes raise ``ValueError`` at trace time; NaN/Inf or out-of-range values raise a
+        ``JaxRuntimeError`` that names the bad value (checkify, so it also works under jit).
+        """
+        self.check_actions(actions)
+        error, out = _checked_step(self, key, state, actions, params)
+        error.throw()
+        return out
+
+    # ---------------------------------------------------------------- observe
+    def observe(self, state: State, params: EnvParams) -> Observation:
+        """Partial egocentric observations, ``[2, n]`` leading axes (see ``observe.observe``)."""
+        return observe_lib.observe(state, params)
+
+    def global_state(self, state: State, params: EnvParams) -> GlobalState:
+        """The critic's full state, leading axis ``[2]`` (each team's own view)."""
+        return observe_lib.global_state(state, params)
+
+
+def _checked_body(
+    env: Soccer, key: jax.Array, state: State, actions: jax.Array, params: EnvParams
+) -> tuple[State, Observation, jax.Array, jax.Array, StepInfo]:
+    finite = jnp.isfinite(actions)
+    bad = jnp.argmin(finite.reshape(-1))
+    checkify.check(
+        jnp.all(finite),
+        "actions contain NaN or Inf: first bad value {value} at flat index {index} of "
+        "actions[team, player, (move, rot)]",
+        value=actions.reshape(-1)[bad],
+        index=bad,
+    )
+    in_range = jnp.abs(actions) <= 1.0
+    out = jnp.argmin(in_range.reshape(-1))
+    checkify.check(
+        jnp.all(in_range | ~finite),
+        "actions out of range: value {value} at flat index {index}; allowed is [-1, 1]",
+        value=actions.reshape(-1)[out],
+        index=out,
+    )
+    return env.step(key, state, actions, params)
+
+
+@jax.jit(static_argnums=0)
+def _jitted_checked(env, key, state, actions, params):  # type: ignore[no-untyped-def]
+    return checkify.checkify(_checked_body, errors=checkify.user_checks)(
+        env, key, state, actions, params
+    )
+
+
+def _checked_step(env, key, state, actions, params):  # type: ignore[no-untyped-def]
+    return _jitted_checked(env, key, state, actions, params)
+
+
+def make(scenario: str = "11v11", **overrides: Any) -> tuple[Soccer, EnvParams]:
+    """``make("11v11")`` -> (env, params). Scenarios "1v1" to "11v11"; overrides go to EnvParams."""
+    match = SCENARIO.match(scenario)
+    if match is None or match.group(1) != match.group(2):
+        raise ValueError(
+            f"scenario={scenario!r} is invalid: use 'NvN' with N from 1 to {MAX_PLAYERS_PER_TEAM}, "
+            "e.g. '2v2' or '11v11'"
+        )
+    players = int(match.group(1))
+    if "players_per_team" in overrides and overrides["players_per_team"] != players:
+        raise ValueError(
+            f"players_per_team={overrides['players_per_team']} contradicts scenario={scenario!r}"
+        )
+    overrides.pop("players_per_team", None)
+    params = EnvParams(players_per_team=players, **overrides)
+    return Soccer(players), params
+
+
+def replace_params(params: EnvParams, **changes: Any) -> EnvParams:
+    """A validated copy of params with some fields changed."""
+    return dataclasses.replace(params, **changes)

@@ -1,0 +1,1 @@
+"""What `elevens bench ...` runs. Speed is measured here, never in unit tests."""

@@ -1,0 +1,176 @@
+"""`elevens bench env`: env steps per second with random actions.
+
+Two modes are timed in the same process, so their ratio is meaningful on a noisy machine:
+- ``scan``: a batch of games vmapped inside one compiled ``lax.scan`` (how the trainer runs it);
+- ``loop``: a Python loop calling a jitted single-game ``env.step`` (what a naive user writes).
+A "step" is one step of one game (all 2n players act). Compile time is reported separately, and
+the figure is the median over repeats.
+"""
+
+from __future__ import annotations
+
+import json
+import statistics
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, replace
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import elevens
+from elevens.env import EnvParams, Soccer, State
+
+
+@dataclass(frozen=True)
+class EnvBenchResult:
+    players: int
+    """Players per team."""
+    batch: int
+    """Games stepped together (1 for the Python loop)."""
+    mode: str
+    """"scan" or "loop"."""
+    steps_per_s: float
+    """Median game steps per second over the repeats."""
+    compile_s: float
+    """Time of the first call (tracing + compilation + one run)."""
+    repeats: int
+    devices: int
+    """Devices the batch was sharded over."""
+    backend: str
+    ratio_to_loop: float | None = None
+    """scan only: steps/s over the Python loop's, measured in the same run."""
+
+
+def _timed(run: Callable[[], Any], repeats: int) -> tuple[float, list[float]]:
+    start = time.perf_counter()
+    jax.block_until_ready(run())
+    compile_s = time.perf_counter() - start
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        jax.block_until_ready(run())
+        times.append(time.perf_counter() - start)
+    return compile_s, times
+
+
+def make_scan_runner(
+    env: Soccer, params: EnvParams, batch: int, steps: int
+) -> Callable[[State, jax.Array], tuple[State, jax.Array]]:
+    """A compiled ``(states, key) -> (states, checksum)`` that plays ``steps`` steps of a batch.
+
+    The observation is computed from the carried state at the top of each step (as a policy would
+    read it) and folded into a checksum, so XLA cannot drop it.
+    """
+    n = env.players_per_team
+    observe = jax.vmap(env.observe, in_axes=(0, None))
+    transition = jax.vmap(env.transition, in_axes=(0, 0, 0, None))
+
+    def run(states: State, key: jax.Array) -> tuple[State, jax.Array]:
+        def body(carry: tuple[State, jax.Array], step_key: jax.Array):  # type: ignore[no-untyped-def]
+            states, checksum = carry
+            obs = observe(states, params)
+            checksum = checksum + jnp.sum(obs.entities) + jnp.sum(obs.self_features)
+            action_key, env_key = jax.random.split(step_key)
+            actions = jax.random.uniform(action_key, (batch, 2, n, 2), minval=-1.0, maxval=1.0)
+            env_keys = jax.random.split(env_key, batch)
+            states, rewards, _, _ = transition(env_keys, states, actions, params)
+            return (states, checksum + jnp.sum(rewards)), None
+
+        (states, checksum), _ = jax.lax.scan(
+            body, (states, jnp.zeros(())), jax.random.split(key, steps)
+        )
+        return states, checksum
+
+    return jax.jit(run)
+
+
+def bench_scan(
+    players: int, batch: int, steps: int = 100, repeats: int = 5, devices: int | None = None
+) -> EnvBenchResult:
+    """Time a vmapped batch inside ``lax.scan``, sharded over ``devices`` (default: all)."""
+    env, params = elevens.make(f"{players}v{players}")
+    available = jax.devices()
+    devices = len(available) if devices is None else devices
+    if batch % devices:
+        devices = 1
+    reset_keys = jax.random.split(jax.random.key(0), batch)
+    states, _ = jax.vmap(env.reset, in_axes=(0, None))(reset_keys, params)
+    if devices > 1:
+        mesh = jax.sharding.Mesh(np.array(available[:devices]), ("games",))
+        sharding = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("games"))
+        states = jax.device_put(states, sharding)
+    runner = make_scan_runner(env, params, batch, steps)
+    holder = {"states": states, "key": jax.random.key(1)}
+
+    def run() -> jax.Array:
+        holder["key"], key = jax.random.split(holder["key"])
+        holder["states"], checksum = runner(holder["states"], key)
+        return checksum
+
+    compile_s, times = _timed(run, repeats)
+    return EnvBenchResult(
+        players=players, batch=batch, mode="scan",
+        steps_per_s=batch * steps / statistics.median(times), compile_s=compile_s, repeats=repeats, devices=devices, backend=jax.default_backend(),
+    )
+
+
+def bench_loop(players: int, steps: int = 200, repeats: int = 5) -> EnvBenchResult:
+    """Time a Python loop over a jitted single-game ``env.step`` with random actions."""
+    env, params = elevens.make(f"{players}v{players}")
+    step = jax.jit(env.step)
+    state, _ = env.reset(jax.random.key(0), params)
+    key = jax.random.key(1)
+
+    def run() -> jax.Array:
+        nonlocal state, key
+        for _ in range(steps):
+            key, action_key, env_key = jax.random.split(key, 3)
+            actions = jax.random.uniform(action_key, (2, players, 2), minval=-1.0, maxval=1.0)
+            state, obs, rewards, _, _ = step(env_key, state, actions, params)
+        return rewards
+
+    compile_s, times = _timed(run, repeats)
+    return EnvBenchResult(
+        players=players, batch=1, mode="loop", steps_per_s=steps / statistics.median(times),
+        compile_s=compile_s, repeats=repeats, devices=1, backend=jax.default_backend(),
+    )
+
+
+def run_env_bench(
+    players: Sequence[int] = (1, 2, 5, 11),
+    batch: Sequence[int] = (256, 1024),
+    steps: int = 100,
+    repeats: int = 5,
+    loop_steps: int = 200,
+    as_json: bool = False,
+    devices: int | None = None,
+    print_fn: Callable[[str], None] = print,
+) -> list[EnvBenchResult]:
+    """Run every configuration; print a table (or one JSON object per line) and return results."""
+    results: list[EnvBenchResult] = []
+    for n in players:
+        loop = bench_loop(n, loop_steps, repeats)
+        results.append(loop)
+        if as_json:
+            print_fn(json.dumps(asdict(loop)))
+        else:
+            print_fn(
+                f"{n:>2}v{n:<2} loop  batch {1:>6}: {loop.steps_per_s:>12,.0f} steps/s "
+                f"(compile {loop.compile_s:.1f} s)"
+            )
+        for b in batch:
+            scan = bench_scan(n, b, steps, repeats, devices)
+            scan = replace(scan, ratio_to_loop=scan.steps_per_s / loop.steps_per_s)
+            results.append(scan)
+            if as_json:
+                print_fn(json.dumps(asdict(scan)))
+            else:
+                print_fn(
+                    f"{n:>2}v{n:<2} scan  batch {b:>6}: {scan.steps_per_s:>12,.0f} steps/s "
+                    f"(compile {scan.compile_s:.1f} s, {scan.devices} device(s)) = "
+                    f"{scan.ratio_to_loop:,.0f}x the Python loop"
+                )
+    return results

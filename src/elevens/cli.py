@@ -97,7 +97,7 @@ def main(argv: list[str] | None = None) -> None:
     # `elevens bench env ...` reads better than a hyphenated subcommand; accept both.
     if len(argv) >= 2 and argv[0] == "bench":
         argv = [f"bench-{argv[1]}", *argv[2:]]
-    args = tyro.cli(Command, args=argv, prog="elevens")  # type: ignore[call-overload]
+    args = tyro.cli(Command, args=argv, prog="elevens")
     if isinstance(args, PlayArgs):
         play(args)
     elif isinstance(args, EnvBenchArgs):

@@ -1,4 +1,4 @@
-"""The env as a whole: jit/vmap agreement, compile once, determinism, long runs, symmetry, errors."""
+"""The env as a whole: jit/vmap agreement, compiling once, determinism, symmetry, errors."""
 
 from __future__ import annotations
 

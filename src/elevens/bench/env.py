@@ -69,7 +69,7 @@ def make_scan_runner(
     transition = jax.vmap(env.transition, in_axes=(0, 0, 0, None))
 
     def run(states: State, key: jax.Array) -> tuple[State, jax.Array]:
-        def body(carry: tuple[State, jax.Array], step_key: jax.Array):  # type: ignore[no-untyped-def]
+        def body(carry: tuple[State, jax.Array], step_key: jax.Array) -> tuple[Any, None]:
             states, checksum = carry
             obs = observe(states, params)
             checksum = checksum + jnp.sum(obs.entities) + jnp.sum(obs.self_features)
@@ -103,17 +103,19 @@ def bench_scan(
         sharding = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("games"))
         states = jax.device_put(states, sharding)
     runner = make_scan_runner(env, params, batch, steps)
-    holder = {"states": states, "key": jax.random.key(1)}
+    key = jax.random.key(1)
 
     def run() -> jax.Array:
-        holder["key"], key = jax.random.split(holder["key"])
-        holder["states"], checksum = runner(holder["states"], key)
+        nonlocal states, key
+        key, run_key = jax.random.split(key)
+        states, checksum = runner(states, run_key)
         return checksum
 
     compile_s, times = _timed(run, repeats)
     return EnvBenchResult(
         players=players, batch=batch, mode="scan",
-        steps_per_s=batch * steps / statistics.median(times), compile_s=compile_s, repeats=repeats, devices=devices, backend=jax.default_backend(),
+        steps_per_s=batch * steps / statistics.median(times), compile_s=compile_s,
+        repeats=repeats, devices=devices, backend=jax.default_backend(),
     )
 
 

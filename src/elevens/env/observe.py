@@ -18,7 +18,7 @@ from elevens.env.physics import team_signs
 from elevens.env.state import GlobalState, Observation, State
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def entity_layout(players_per_team: int) -> tuple[np.ndarray, np.ndarray]:
     """Static slot tables for a team size.
 
@@ -118,7 +118,7 @@ def observe(state: State, params: EnvParams) -> Observation:
     is_ball_full = np.zeros((num_players, num_players + 1), np.float32)
     is_ball_full[:, -1] = 1.0
     not_ball = 1.0 - is_ball_full
-    columns = [
+    columns: list[jax.Array | np.ndarray] = [
         distance / params.field_length,
         cos_bearing,
         sin_bearing,
@@ -133,9 +133,9 @@ def observe(state: State, params: EnvParams) -> Observation:
     ]
     # Reorder each [2n, 2n + 1] feature into slots before stacking, so the reorder moves arrays
     # 11 times smaller than the stacked one (measured 1.4x faster at batch 1024 on CPU).
-    columns = [_slots(jnp.asarray(column), n) for column in columns]
-    visible = columns[1] >= jnp.cos(params.fov_half_angle)
-    entities = jnp.stack([jnp.where(visible, column, 0.0) for column in columns], axis=-1)
+    slotted = [_slots(jnp.asarray(column), n) for column in columns]
+    visible = slotted[1] >= jnp.cos(params.fov_half_angle)
+    entities = jnp.stack([jnp.where(visible, column, 0.0) for column in slotted], axis=-1)
 
     sign = team_signs(params)[:, None]
     extent = jnp.stack([jnp.asarray(params.half_length), jnp.asarray(params.half_width)])

@@ -60,7 +60,8 @@ def formation(players_per_team: int) -> np.ndarray:
 
 def _is_concrete_number(value: Any) -> bool:
     # Under jit/vmap the leaves are tracers or placeholders; only real numbers are validated.
-    return isinstance(value, Real | np.number) or (isinstance(value, np.ndarray) and value.ndim == 0)
+    scalar_array = isinstance(value, np.ndarray) and value.ndim == 0
+    return isinstance(value, Real | np.number) or scalar_array
 
 
 @struct.dataclass

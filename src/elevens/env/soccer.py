@@ -182,13 +182,13 @@ def _checked_body(
 
 
 @jax.jit(static_argnums=0)
-def _jitted_checked(env, key, state, actions, params):  # type: ignore[no-untyped-def]
+def _jitted_checked(env, key, state, actions, params):
     return checkify.checkify(_checked_body, errors=checkify.user_checks)(
         env, key, state, actions, params
     )
 
 
-def _checked_step(env, key, state, actions, params):  # type: ignore[no-untyped-def]
+def _checked_step(env, key, state, actions, params):
     return _jitted_checked(env, key, state, actions, params)
 
 

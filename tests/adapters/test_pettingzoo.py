@@ -276,7 +276,7 @@ def test_truncation_at_episode_length_empties_agents() -> None:
 # ----------------------------------------------------------------- agreement with JAX
 def test_rewards_and_observations_agree_with_the_jax_env() -> None:
     """Replay the adapter's documented key schedule on the JAX env; goals must happen."""
-    seed, steps = 11, 120
+    seed, steps = 11, 240
     env = SoccerParallelEnv("1v1", **SMALL_PITCH)
     soccer, params = elevens.make("1v1", **SMALL_PITCH)
     jax_step = jax.jit(soccer.step)

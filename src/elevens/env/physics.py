@@ -135,23 +135,25 @@ def spawn(key: jax.Array, params: EnvParams) -> Spawn:
     opponent goal + U(+-heading_noise). Random: uniform in the own half, uniform heading.
     """
     n = params.players_per_team
-    player_key, heading_key, ball_key = jax.random.split(key, 3)
+    # One draw for everything: each threefry call is a loop of its own on CPU, and this runs for
+    # every game at every step (vmap turns the respawn into a select).
+    draw = jax.random.uniform(key, (2 * n * 3 + 2,), minval=-1.0, maxval=1.0)
+    player_unit = draw[: 4 * n].reshape(2, n, 2)  # U(-1, 1)
+    heading_unit = draw[4 * n : 6 * n].reshape(2, n)
+    ball_unit = draw[6 * n :]
     half_length, half_width = params.half_length, params.half_width
     extent = jnp.stack([jnp.asarray(half_length), jnp.asarray(half_width)])
     if params.spawn == "formation":
         scale = extent / jnp.array([50.0, 35.0])
         slots = jnp.asarray(formation(n), jnp.float32) * scale
-        noise = jax.random.uniform(player_key, (2, n, 2), minval=-1.0, maxval=1.0)
-        team_frame = slots[None] + params.spawn_noise * noise
-        heading_offset = params.heading_noise * jax.random.uniform(
-            heading_key, (2, n), minval=-1.0, maxval=1.0
-        )
+        team_frame = slots[None] + params.spawn_noise * player_unit
+        heading_offset = params.heading_noise * heading_unit
     else:
-        unit = jax.random.uniform(player_key, (2, n, 2))
         team_frame = jnp.stack(
-            [-half_length * unit[..., 0], half_width * (2 * unit[..., 1] - 1)], axis=-1
+            [-half_length * (player_unit[..., 0] + 1) / 2, half_width * player_unit[..., 1]],
+            axis=-1,
         )
-        heading_offset = jax.random.uniform(heading_key, (2, n), minval=-np.pi, maxval=np.pi)
+        heading_offset = np.pi * heading_unit
     team_frame = jnp.clip(team_frame, jnp.stack([-half_length, -half_width]),
                           jnp.stack([jnp.zeros_like(half_length), half_width]))
     # Team 1 is the point reflection of team 0: negate positions, turn headings by pi.
@@ -162,7 +164,6 @@ def spawn(key: jax.Array, params: EnvParams) -> Spawn:
     if params.ball_spawn == "centre":
         ball_position = jnp.zeros(2)
     else:
-        ball_unit = jax.random.uniform(ball_key, (2,), minval=-1.0, maxval=1.0)
         ball_position = params.ball_spawn_fraction * extent * ball_unit
     return Spawn(positions=positions, headings=headings, ball_position=ball_position)
 

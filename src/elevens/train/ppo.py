@@ -1,0 +1,591 @@
+"""PPO: returns and advantages, the loss terms, and the update over epochs and minibatches.
+
+Everything here is pure JAX on plain arrays and pytrees, so the trainer can compile a whole
+iteration (rollout, advantages, epochs, opponent update) into one program. Losses are split into
+small functions so that each can be checked by hand (tests/train/test_ppo.py), as Brax does.
+
+Thesis references (seeds/000): section 3.3.5 (the PPO objective, eq. 3.59-3.67), Algorithm 4 and
+section 5.2 (the multi-agent changes: clip 0.1, 5 epochs), table 6.1 (the numbers).
+
+Time-axis conventions used by both estimators below:
+
+* ``rewards[t]`` is the reward received for the action at step ``t``.
+* ``dones[t]`` is True when step ``t`` is the LAST step of its episode: nothing flows from
+  ``t + 1`` back into ``t`` (the next step, if any, belongs to a new episode).
+* A time limit is a truncation, not a terminal (STYLE.md). Where the value after a truncation is
+  known it is bootstrapped from; where it is not, the truncation is treated as a terminal. See the
+  docstrings of ``monte_carlo_returns`` and ``gae`` for exactly which argument carries that value.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from typing import Any, Literal, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import optax
+from jax.typing import ArrayLike
+
+PyTree = Any
+Metrics = Any
+
+# --------------------------------------------------------------------------------------------
+# Hyperparameters
+# --------------------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class PPOHyperparams:
+    """The PPO numbers of the thesis (table 6.1, Algorithm 4) plus a few switches, all static."""
+
+    gamma: float = 0.999
+    """Reward discount factor gamma (table 6.1)."""
+    gae_lambda: float = 0.95
+    """GAE lambda, used only when ``advantage_estimator == "gae"``. Not in the thesis (it uses
+    Monte Carlo returns, section 3.3.5); 0.95 is the default of Schulman et al. (2016)."""
+    advantage_estimator: Literal["monte_carlo", "gae"] = "monte_carlo"
+    """The thesis' choice is Monte Carlo returns, A = G - V (eq. 3.62-3.63, section 3.3.5:
+    "we found Monte Carlo sampling to work better in our multi-agent setting"). "gae" is the
+    original PPO estimator, kept as a switch for ablations."""
+    learning_rate: float = 1e-4
+    """Learning rate of the Adam optimiser (table 6.1)."""
+    epochs: int = 5
+    """epochs_per_step (Algorithm 4, table 6.1, section 5.2.2: 5 instead of PPO's usual more)."""
+    batch_size: int = 660
+    """Experience batch size (table 6.1). The thesis does not name the unit; here it counts the
+    sampling units of ``update_epochs`` (one game-team-player sequence for the recurrent policy)."""
+    minibatch_size: int = 60
+    """Mini-batch size (table 6.1), in the unit of ``batch_size``: 660 / 60 = 11 minibatches."""
+    clip_epsilon: float = 0.1
+    """PPO clipping value epsilon_p (table 6.1, section 5.2.1: 0.1 instead of PPO's 0.2)."""
+    policy_weight: float = 1.0
+    """Policy loss weighting alpha_p (table 6.1, Algorithm 4)."""
+    value_weight: float = 0.5
+    """Critic loss weighting alpha_v (table 6.1). It multiplies the plain squared error
+    (G - V)^2 of eq. 3.61, so the value term is 0.5 * (G - V)^2 as in Algorithm 4 line 21."""
+    entropy_weight: float = 0.01
+    """Entropy loss weighting alpha_e (table 6.1)."""
+    normalize_advantages: bool = False
+    """Standardise advantages per minibatch (mean 0, std 1 over the minibatch's valid entries).
+    Off by default: Algorithm 4 uses the raw A = G - V. CleanRL and Brax turn it on."""
+    clip_value: bool = False
+    """Clip the critic's change around the rollout-time value (PPO2-style). Off by default: the
+    thesis' critic objective is the plain squared error (eq. 3.61)."""
+    value_clip_epsilon: float = 0.1
+    """Width of the value clip when ``clip_value`` is on; not in the thesis, set to epsilon_p as
+    CleanRL ties the two."""
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.gamma <= 1.0:
+            raise ValueError(f"gamma={self.gamma!r} is invalid: it must be in [0, 1]")
+        if not 0.0 <= self.gae_lambda <= 1.0:
+            raise ValueError(f"gae_lambda={self.gae_lambda!r} is invalid: it must be in [0, 1]")
+        if self.advantage_estimator not in ("monte_carlo", "gae"):
+            raise ValueError(
+                f"advantage_estimator={self.advantage_estimator!r} is invalid: "
+                "allowed values are ('monte_carlo', 'gae')"
+            )
+        if self.epochs < 1:
+            raise ValueError(f"epochs={self.epochs!r} is invalid: it must be >= 1")
+        if self.minibatch_size < 1 or self.batch_size < 1:
+            raise ValueError(
+                f"batch_size={self.batch_size!r}, minibatch_size={self.minibatch_size!r} are "
+                "invalid: both must be >= 1"
+            )
+        if self.batch_size % self.minibatch_size != 0:
+            raise ValueError(
+                f"minibatch_size={self.minibatch_size} does not divide "
+                f"batch_size={self.batch_size}"
+            )
+        if self.clip_epsilon <= 0 or self.value_clip_epsilon <= 0:
+            raise ValueError(
+                f"clip_epsilon={self.clip_epsilon!r}, value_clip_epsilon="
+                f"{self.value_clip_epsilon!r} are invalid: both must be > 0"
+            )
+
+    @property
+    def num_minibatches(self) -> int:
+        """Minibatches per epoch: ``batch_size // minibatch_size`` (11 with table 6.1)."""
+        return self.batch_size // self.minibatch_size
+
+
+# --------------------------------------------------------------------------------------------
+# Returns and advantages (reverse scans over the leading time axis)
+# --------------------------------------------------------------------------------------------
+
+
+class Advantages(NamedTuple):
+    """Output of ``gae``; every field has the shape of ``rewards``, ``f32[T, ...]``."""
+
+    advantages: jax.Array
+    """A_t, the lambda-advantage."""
+    returns: jax.Array
+    """A_t + V(s_t): the critic's regression target (the lambda-return)."""
+
+
+def monte_carlo_returns(
+    rewards: ArrayLike,
+    dones: ArrayLike,
+    gamma: ArrayLike,
+    bootstrap_value: ArrayLike | None = None,
+) -> jax.Array:
+    """Discounted returns G_t = r_t + gamma * G_{t+1} (eq. 3.62), cut at episode ends.
+
+    Args:
+        rewards: ``f32[T, ...]``, any trailing axes (games, players).
+        dones: ``bool[T, ...]`` (or broadcastable to ``rewards``): True at the last step of an
+            episode. The return of that step is its reward alone; later rewards belong to the next
+            episode and never leak back.
+        gamma: discount factor, a scalar.
+        bootstrap_value: ``f32[...]``, the critic's value of the state that follows the LAST step
+            of the rollout, or None for 0. It is used only where ``dones[-1]`` is False, that is,
+            where the rollout was cut before its episode ended (a truncation by the rollout
+            length, or a time limit that the caller chose to bootstrap).
+
+    Truncation convention: a time limit inside the rollout cannot be bootstrapped here (the value
+    after it is not an argument): mark it in ``dones`` and it is treated as a terminal; use ``gae``
+    with ``truncation_values`` where that matters. In the thesis' setting a rollout is one whole
+    game and the critic sees the time left, so the final whistle really ends the game for the
+    critic: pass ``dones[-1] = True`` (or ``bootstrap_value=None``), as Algorithm 4's
+    ``discounted_return`` does.
+
+    Returns:
+        ``f32[T, ...]`` the returns G_t.
+    """
+    rewards = jnp.asarray(rewards, jnp.float32)
+    continues = 1.0 - jnp.broadcast_to(jnp.asarray(dones), rewards.shape).astype(jnp.float32)
+    if bootstrap_value is None:
+        last_return = jnp.zeros(rewards.shape[1:], jnp.float32)
+    else:
+        last_return = jnp.broadcast_to(
+            jnp.asarray(bootstrap_value, jnp.float32), rewards.shape[1:]
+        )
+
+    def backward_step(
+        next_return: jax.Array, step: tuple[jax.Array, jax.Array]
+    ) -> tuple[jax.Array, jax.Array]:
+        reward, cont = step
+        current = reward + gamma * cont * next_return
+        return current, current
+
+    _, returns = jax.lax.scan(backward_step, last_return, (rewards, continues), reverse=True)
+    return returns
+
+
+def gae(
+    rewards: ArrayLike,
+    values: ArrayLike,
+    dones: ArrayLike,
+    truncations: ArrayLike,
+    last_value: ArrayLike,
+    gamma: ArrayLike,
+    lambda_: ArrayLike,
+    truncation_values: ArrayLike | None = None,
+) -> Advantages:
+    """Generalised advantage estimation (Schulman et al. 2016) by a reverse ``lax.scan``.
+
+    Args:
+        rewards: ``f32[T, ...]``, any trailing axes.
+        values: ``f32[T, ...]``, V(s_t) as seen by the critic at rollout time.
+        dones: ``bool[T, ...]``: True at the last step of an episode, for any reason.
+        truncations: ``bool[T, ...]``: True where that end was a time limit rather than a real
+            terminal. A truncation is an episode end even where ``dones`` is False.
+        last_value: ``f32[...]``, V(s_T), the value of the state after the last rollout step;
+            used only where the last step is not an episode end.
+        gamma, lambda_: scalars.
+        truncation_values: ``f32[T, ...]`` or None. Where ``truncations[t]``, the value of the
+            state reached by step t (the truncated state, before any reset).
+
+    The next-state value used at step t is, exactly:
+
+    * not an episode end: ``values[t + 1]`` (``last_value`` at t = T - 1), and the advantage
+      accumulates ``gamma * lambda_ * A_{t+1}``;
+    * a terminal: 0, and nothing accumulates from ``t + 1``;
+    * a truncation with ``truncation_values`` given: ``truncation_values[t]``, and nothing
+      accumulates from ``t + 1`` (it is another episode);
+    * a truncation with ``truncation_values=None``: treated as a terminal (value 0).
+
+    In this env there is no auto-reset and a rollout is whole games, so the simple way to bootstrap
+    the final whistle is ``dones[-1] = truncations[-1] = False`` with ``last_value = V(s_T)``.
+
+    Returns:
+        ``Advantages(advantages, returns)``, each ``f32[T, ...]``; returns = advantages + values.
+    """
+    rewards = jnp.asarray(rewards, jnp.float32)
+    values = jnp.broadcast_to(jnp.asarray(values, jnp.float32), rewards.shape)
+    truncated = jnp.broadcast_to(jnp.asarray(truncations), rewards.shape).astype(bool)
+    ended = jnp.broadcast_to(jnp.asarray(dones), rewards.shape).astype(bool) | truncated
+    last_value = jnp.broadcast_to(jnp.asarray(last_value, jnp.float32), rewards.shape[1:])
+    next_values = jnp.concatenate([values[1:], last_value[None]], axis=0)
+    if truncation_values is None:
+        end_values = jnp.zeros_like(values)
+    else:
+        trunc_values = jnp.broadcast_to(jnp.asarray(truncation_values, jnp.float32), values.shape)
+        end_values = jnp.where(truncated, trunc_values, 0.0)
+    bootstrap = jnp.where(ended, end_values, next_values)
+    deltas = rewards + gamma * bootstrap - values
+    continues = 1.0 - ended.astype(jnp.float32)
+
+    def backward_step(
+        next_advantage: jax.Array, step: tuple[jax.Array, jax.Array]
+    ) -> tuple[jax.Array, jax.Array]:
+        delta, cont = step
+        advantage = delta + gamma * lambda_ * cont * next_advantage
+        return advantage, advantage
+
+    _, advantages = jax.lax.scan(
+        backward_step, jnp.zeros_like(last_value), (deltas, continues), reverse=True
+    )
+    return Advantages(advantages=advantages, returns=advantages + values)
+
+
+# --------------------------------------------------------------------------------------------
+# Loss terms
+# --------------------------------------------------------------------------------------------
+
+
+def _masked_mean(x: jax.Array, mask: ArrayLike | None) -> jax.Array:
+    """Mean of x over the entries where mask is True (all entries when mask is None)."""
+    if mask is None:
+        return jnp.mean(x)
+    weights = jnp.broadcast_to(jnp.asarray(mask), x.shape).astype(x.dtype)
+    return jnp.sum(x * weights) / jnp.maximum(jnp.sum(weights), 1.0)
+
+
+class PolicyLoss(NamedTuple):
+    """Output of ``policy_loss``; all scalars ``f32[]``."""
+
+    loss: jax.Array
+    """-mean(min(ratio * A, clip(ratio, 1 - eps, 1 + eps) * A)), to be minimised."""
+    approx_kl: jax.Array
+    """mean((ratio - 1) - log ratio): the low-variance, non-negative KL(old || new) estimator."""
+    clip_fraction: jax.Array
+    """Fraction of samples with |ratio - 1| > eps (where clipping can cut the gradient)."""
+
+
+def policy_loss(
+    log_prob_new: ArrayLike,
+    log_prob_old: ArrayLike,
+    advantages: ArrayLike,
+    clip_epsilon: float,
+    mask: ArrayLike | None = None,
+) -> PolicyLoss:
+    """The clipped surrogate of PPO (eq. 3.67), negated into a loss.
+
+    Args:
+        log_prob_new: ``f32[...]`` log pi_theta(a_t | o_t) under the params being optimised.
+        log_prob_old: ``f32[...]`` the same at rollout time (no gradient flows into it).
+        advantages: ``f32[...]`` (no gradient flows into it).
+        clip_epsilon: epsilon_p, 0.1 in the thesis.
+        mask: optional ``bool[...]``: only True entries count (padded players, for example).
+    """
+    log_ratio = jnp.asarray(log_prob_new) - jax.lax.stop_gradient(jnp.asarray(log_prob_old))
+    ratio = jnp.exp(log_ratio)
+    advantages = jax.lax.stop_gradient(jnp.asarray(advantages, jnp.float32))
+    unclipped = ratio * advantages
+    clipped = jnp.clip(ratio, 1.0 - clip_epsilon, 1.0 + clip_epsilon) * advantages
+    objective = jnp.minimum(unclipped, clipped)
+    # Diagnostics only: they must not add gradients if someone puts them into a loss.
+    ratio_sg = jax.lax.stop_gradient(ratio)
+    log_ratio_sg = jax.lax.stop_gradient(log_ratio)
+    return PolicyLoss(
+        loss=-_masked_mean(objective, mask),
+        approx_kl=_masked_mean((ratio_sg - 1.0) - log_ratio_sg, mask),
+        clip_fraction=_masked_mean(
+            (jnp.abs(ratio_sg - 1.0) > clip_epsilon).astype(jnp.float32), mask
+        ),
+    )
+
+
+def value_loss(
+    values: ArrayLike,
+    returns: ArrayLike,
+    old_values: ArrayLike | None = None,
+    clip_epsilon: float | None = None,
+    mask: ArrayLike | None = None,
+) -> jax.Array:
+    """The critic loss mean((G_t - V(s_t))^2) of eq. 3.61, ``f32[]``.
+
+    This is the plain squared error; ``ppo_loss`` multiplies it by ``value_weight = 0.5``, which
+    gives the 0.5 * (G - V)^2 of Algorithm 4 (V_obj = -A^2 weighted by alpha_v = 0.5).
+
+    Value clipping (PPO2-style) is on only when both ``old_values`` and ``clip_epsilon`` are
+    given: the per-sample loss becomes max((G - V)^2, (G - V_clip)^2) with
+    V_clip = V_old + clip(V - V_old, -clip_epsilon, clip_epsilon).
+
+    Args:
+        values: ``f32[...]`` the critic's current values.
+        returns: ``f32[...]`` targets (no gradient flows into them).
+        old_values: ``f32[...]`` values at rollout time, for clipping.
+        clip_epsilon: clip width, or None for no clipping.
+        mask: optional ``bool[...]``.
+    """
+    values = jnp.asarray(values, jnp.float32)
+    returns = jax.lax.stop_gradient(jnp.asarray(returns, jnp.float32))
+    squared_error = jnp.square(returns - values)
+    if old_values is not None and clip_epsilon is not None:
+        old_values = jax.lax.stop_gradient(jnp.asarray(old_values, jnp.float32))
+        clipped_values = old_values + jnp.clip(values - old_values, -clip_epsilon, clip_epsilon)
+        squared_error = jnp.maximum(squared_error, jnp.square(returns - clipped_values))
+    return _masked_mean(squared_error, mask)
+
+
+def entropy_bonus(entropy: ArrayLike, mask: ArrayLike | None = None) -> jax.Array:
+    """Mean policy entropy, ``f32[]``: a bonus, so ``ppo_loss`` SUBTRACTS it (weighted)."""
+    return _masked_mean(jnp.asarray(entropy, jnp.float32), mask)
+
+
+def normalize_advantages(advantages: ArrayLike, mask: ArrayLike | None = None) -> jax.Array:
+    """(A - mean) / (std + 1e-8) over the valid entries; masked-out entries come back as 0."""
+    advantages = jnp.asarray(advantages, jnp.float32)
+    mean = _masked_mean(advantages, mask)
+    std = jnp.sqrt(_masked_mean(jnp.square(advantages - mean), mask))
+    normalized = (advantages - mean) / (std + 1e-8)
+    if mask is None:
+        return normalized
+    return jnp.where(jnp.broadcast_to(jnp.asarray(mask), normalized.shape), normalized, 0.0)
+
+
+class PPOLoss(NamedTuple):
+    """Output of ``ppo_loss``; all scalars ``f32[]``. ``total`` is what gets differentiated."""
+
+    total: jax.Array
+    """policy_weight * policy + value_weight * value - entropy_weight * entropy."""
+    policy: jax.Array
+    """The clipped-surrogate loss (``PolicyLoss.loss``)."""
+    value: jax.Array
+    """The critic's mean squared error (``value_loss``), unweighted."""
+    entropy: jax.Array
+    """Mean entropy (``entropy_bonus``), unweighted."""
+    approx_kl: jax.Array
+    clip_fraction: jax.Array
+    advantage_mean: jax.Array
+    """Mean advantage before normalisation (a sanity signal: near 0 when the critic is right)."""
+
+
+def ppo_loss(
+    log_prob_new: ArrayLike,
+    log_prob_old: ArrayLike,
+    values: ArrayLike,
+    returns: ArrayLike,
+    entropy: ArrayLike,
+    *,
+    advantages: ArrayLike | None = None,
+    old_values: ArrayLike | None = None,
+    mask: ArrayLike | None = None,
+    hyperparams: PPOHyperparams | None = None,
+) -> PPOLoss:
+    """The PPO loss of eq. 3.59 / Algorithm 4 line 21 (negated into a minimisation).
+
+    Args:
+        log_prob_new, log_prob_old: ``f32[...]`` log-probabilities of the taken actions, under the
+            params being optimised and at rollout time.
+        values: ``f32[...]`` the critic's current values V_phi(s_t).
+        returns: ``f32[...]`` targets G_t (Monte Carlo returns, or the GAE lambda-returns).
+        entropy: ``f32[...]`` policy entropies.
+        advantages: ``f32[...]``, or None to use A = G - V with the CURRENT critic (stopped
+            gradient), as Algorithm 4 lines 15-17 recompute it inside every epoch. Pass the GAE
+            advantages here when using GAE.
+        old_values: ``f32[...]`` rollout-time values, needed only for value clipping.
+        mask: optional ``bool[...]``; only True entries count (in every term and statistic).
+        hyperparams: weights, clip and switches; ``PPOHyperparams()`` when None.
+
+    Advantage normalisation (``hyperparams.normalize_advantages``) happens here, so it is per
+    minibatch: call this inside the minibatch loss.
+    """
+    hp = PPOHyperparams() if hyperparams is None else hyperparams
+    values = jnp.asarray(values, jnp.float32)
+    returns = jnp.asarray(returns, jnp.float32)
+    if advantages is None:
+        advantages = returns - jax.lax.stop_gradient(values)
+    advantages = jax.lax.stop_gradient(jnp.asarray(advantages, jnp.float32))
+    advantage_mean = _masked_mean(advantages, mask)
+    if hp.normalize_advantages:
+        advantages = normalize_advantages(advantages, mask)
+    policy = policy_loss(log_prob_new, log_prob_old, advantages, hp.clip_epsilon, mask)
+    value = value_loss(
+        values,
+        returns,
+        old_values=old_values if hp.clip_value else None,
+        clip_epsilon=hp.value_clip_epsilon if hp.clip_value else None,
+        mask=mask,
+    )
+    entropy_mean = entropy_bonus(entropy, mask)
+    total = (
+        hp.policy_weight * policy.loss
+        + hp.value_weight * value
+        - hp.entropy_weight * entropy_mean
+    )
+    return PPOLoss(
+        total=total,
+        policy=policy.loss,
+        value=value,
+        entropy=entropy_mean,
+        approx_kl=policy.approx_kl,
+        clip_fraction=policy.clip_fraction,
+        advantage_mean=advantage_mean,
+    )
+
+
+def explained_variance(
+    values: ArrayLike, returns: ArrayLike, mask: ArrayLike | None = None
+) -> jax.Array:
+    """1 - Var(G - V) / Var(G) over all (valid) entries, ``f32[]``.
+
+    1 is a perfect critic, 0 one no better than a constant, negative one worse than that. Where
+    the returns have no variance there is nothing to explain and the result is 0 (not NaN), so
+    logs stay finite.
+    """
+    values = jnp.asarray(values, jnp.float32)
+    returns = jnp.asarray(returns, jnp.float32)
+
+    def variance(x: jax.Array) -> jax.Array:
+        return _masked_mean(jnp.square(x - _masked_mean(x, mask)), mask)
+
+    var_returns = variance(returns)
+    var_error = variance(returns - values)
+    safe = jnp.where(var_returns > 0, var_returns, 1.0)
+    return jnp.where(var_returns > 0, 1.0 - var_error / safe, 0.0)
+
+
+# --------------------------------------------------------------------------------------------
+# The update: epochs of shuffled minibatches
+# --------------------------------------------------------------------------------------------
+
+
+def _check_minibatches(num_items: int, num_minibatches: int) -> None:
+    if not isinstance(num_minibatches, int) or num_minibatches < 1:
+        raise ValueError(f"num_minibatches={num_minibatches!r} is invalid: it must be an int >= 1")
+    if num_items % num_minibatches != 0:
+        raise ValueError(
+            f"num_minibatches={num_minibatches} does not divide the batch of "
+            f"{num_items} units (leading axis); choose a divisor of {num_items}"
+        )
+
+
+def minibatch_indices(key: jax.Array, num_items: int, num_minibatches: int) -> jax.Array:
+    """A random partition of ``range(num_items)`` into equal minibatches.
+
+    Returns ``i32[num_minibatches, num_items // num_minibatches]``; every index appears exactly
+    once. Raises ``ValueError`` (before tracing) if ``num_minibatches`` does not divide
+    ``num_items``.
+    """
+    _check_minibatches(num_items, num_minibatches)
+    permutation = jax.random.permutation(key, num_items)
+    return permutation.reshape(num_minibatches, num_items // num_minibatches)
+
+
+def _batch_size(batch: PyTree) -> int:
+    leaves = jax.tree_util.tree_leaves(batch)
+    if not leaves:
+        raise ValueError("the batch is empty: it has no array leaves")
+    sizes = {int(jnp.shape(leaf)[0]) if jnp.ndim(leaf) > 0 else -1 for leaf in leaves}
+    if len(sizes) != 1 or -1 in sizes:
+        raise ValueError(
+            "every leaf of the batch needs the same leading (unit) axis; found sizes "
+            f"{sorted(sizes)} (-1 is a scalar leaf)"
+        )
+    return sizes.pop()
+
+
+def shuffle_minibatches(key: jax.Array, batch: PyTree, num_minibatches: int) -> PyTree:
+    """Split ``batch`` (leading axis = units) into shuffled minibatches.
+
+    Every leaf ``[N, ...]`` becomes ``[num_minibatches, N // num_minibatches, ...]``. Only the
+    leading axis is permuted, so whatever follows it (a sequence's time axis, its players) stays
+    intact inside each unit.
+    """
+    indices = minibatch_indices(key, _batch_size(batch), num_minibatches)
+    return jax.tree_util.tree_map(lambda leaf: jnp.take(leaf, indices, axis=0), batch)
+
+
+def _global_norm(tree: PyTree) -> jax.Array:
+    """sqrt of the sum of squares of every leaf (optax renamed its helper across versions)."""
+    leaves = jax.tree_util.tree_leaves(tree)
+    return jnp.sqrt(sum((jnp.sum(jnp.square(leaf)) for leaf in leaves), jnp.zeros(())))
+
+
+class UpdateResult(NamedTuple):
+    """Output of ``update_epochs``."""
+
+    params: PyTree
+    opt_state: optax.OptState
+    loss: jax.Array
+    """``f32[]`` mean of the loss over all epochs and minibatches (before each step)."""
+    grad_norm: jax.Array
+    """``f32[]`` mean global gradient norm."""
+    metrics: Metrics
+    """The loss function's metrics pytree, averaged over all epochs and minibatches."""
+
+
+class _TrainCarry(NamedTuple):
+    params: PyTree
+    opt_state: optax.OptState
+
+
+class _StepStats(NamedTuple):
+    loss: jax.Array
+    grad_norm: jax.Array
+    metrics: Metrics
+
+
+def update_epochs(
+    loss_fn: Callable[[PyTree, PyTree], tuple[jax.Array, Metrics]],
+    optimizer: optax.GradientTransformation,
+    params: PyTree,
+    opt_state: optax.OptState,
+    batch: PyTree,
+    shuffle_key: jax.Array,
+    *,
+    epochs: int,
+    num_minibatches: int,
+) -> UpdateResult:
+    """Run ``epochs`` passes over ``batch`` in shuffled minibatches (nested ``lax.scan``).
+
+    Args:
+        loss_fn: ``loss_fn(params, minibatch) -> (loss f32[], metrics pytree)``; differentiated
+            with respect to ``params``.
+        optimizer: an optax transformation (Adam, lr 1e-4 in the thesis) and ``opt_state`` its
+            state for ``params``.
+        batch: a pytree whose every leaf has the same leading axis of N sampling units. For the
+            recurrent policy a unit is a whole game-team-player sequence ``[N, T, ...]`` (with its
+            initial LSTM carry as another leaf), so the time axis stays intact in a minibatch.
+        shuffle_key: one key; each epoch draws its own permutation from it.
+        epochs: number of passes (5 in the thesis), static.
+        num_minibatches: minibatches per epoch (11 in the thesis), static; must divide N.
+
+    Raises ``ValueError`` before tracing if ``num_minibatches`` does not divide N, or the leaves
+    disagree on N. Jit this whole function with ``loss_fn``/``optimizer``/``epochs``/
+    ``num_minibatches`` static (or close over them), as the trainer does.
+    """
+    if not isinstance(epochs, int) or epochs < 1:
+        raise ValueError(f"epochs={epochs!r} is invalid: it must be an int >= 1")
+    num_items = _batch_size(batch)
+    _check_minibatches(num_items, num_minibatches)
+    grad_fn = jax.value_and_grad(loss_fn, has_aux=True)
+
+    def minibatch_step(carry: _TrainCarry, minibatch: PyTree) -> tuple[_TrainCarry, _StepStats]:
+        (loss, metrics), grads = grad_fn(carry.params, minibatch)
+        updates, opt_state = optimizer.update(grads, carry.opt_state, carry.params)
+        params = optax.apply_updates(carry.params, updates)
+        stats = _StepStats(loss=loss, grad_norm=_global_norm(grads), metrics=metrics)
+        return _TrainCarry(params=params, opt_state=opt_state), stats
+
+    def epoch_step(carry: _TrainCarry, epoch_key: jax.Array) -> tuple[_TrainCarry, _StepStats]:
+        minibatches = shuffle_minibatches(epoch_key, batch, num_minibatches)
+        return jax.lax.scan(minibatch_step, carry, minibatches)
+
+    epoch_keys = jax.random.split(shuffle_key, epochs)
+    carry, stats = jax.lax.scan(
+        epoch_step, _TrainCarry(params=params, opt_state=opt_state), epoch_keys
+    )
+    mean_stats = jax.tree_util.tree_map(lambda x: jnp.mean(x, axis=(0, 1)), stats)
+    return UpdateResult(
+        params=carry.params,
+        opt_state=carry.opt_state,
+        loss=mean_stats.loss,
+        grad_norm=mean_stats.grad_norm,
+        metrics=mean_stats.metrics,
+    )

@@ -1,0 +1,56 @@
+"""The command line: `elevens play` writes a game, `elevens bench env --json` reports figures."""
+
+from __future__ import annotations
+
+import json
+
+import imageio.v3 as iio
+import pytest
+
+from elevens.cli import main
+
+
+def test_play_writes_a_gif_with_one_frame_per_step(tmp_path, capsys):
+    out = tmp_path / "game.gif"
+    main(["play", "--home", "naive", "--away", "random", "--players", "1", "--steps", "12",
+          "--out", str(out), "--scale", "3"])
+    frames = iio.imread(out, index=None)
+    assert frames.shape[0] == 12
+    assert frames.shape[-1] in (3, 4)
+
+
+def test_play_view_of_one_player_and_mp4(tmp_path):
+    out = tmp_path / "game.mp4"
+    main(["play", "--players", "2", "--steps", "8", "--out", str(out), "--view", "1",
+          "--scale", "3"])
+    assert out.stat().st_size > 0
+
+
+@pytest.mark.parametrize(
+    "argv,message",
+    [
+        (["play", "--home", "wizards", "--steps", "4"], "team 'wizards' is unknown"),
+        (["play", "--players", "12", "--steps", "4"], "players_per_team=12"),
+        (["play", "--players", "1", "--view", "5", "--steps", "4"], "view=5"),
+        (["play", "--steps", "4", "--out", "game.avi"], ".gif or .mp4"),
+    ],
+)
+def test_play_bad_input_is_a_clear_error(argv, message, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(ValueError, match=message):
+        main(argv)
+
+
+def test_bench_env_json_lines(capsys):
+    main(["bench", "env", "--players", "1", "2", "--batch", "8", "--steps", "5", "--repeats", "1",
+          "--loop-steps", "5", "--json"])
+    lines = [json.loads(line) for line in capsys.readouterr().out.strip().splitlines()]
+    assert [(r["players"], r["mode"], r["batch"]) for r in lines] == [
+        (1, "loop", 1), (1, "scan", 8), (2, "loop", 1), (2, "scan", 8)
+    ]
+    for record in lines:
+        assert record["steps_per_s"] > 0
+        assert set(record) >= {"players", "batch", "mode", "steps_per_s"}
+    assert lines[1]["ratio_to_loop"] == pytest.approx(
+        lines[1]["steps_per_s"] / lines[0]["steps_per_s"]
+    )

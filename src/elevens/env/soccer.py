@@ -6,7 +6,6 @@ The env object holds only static structure (players per team); every number live
 
 from __future__ import annotations
 
-import dataclasses
 import re
 from typing import Any
 
@@ -208,8 +207,3 @@ def make(scenario: str = "11v11", **overrides: Any) -> tuple[Soccer, EnvParams]:
     overrides.pop("players_per_team", None)
     params = EnvParams(players_per_team=players, **overrides)
     return Soccer(players), params
-
-
-def replace_params(params: EnvParams, **changes: Any) -> EnvParams:
-    """A validated copy of params with some fields changed."""
-    return dataclasses.replace(params, **changes)

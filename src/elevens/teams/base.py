@@ -21,7 +21,10 @@ Params = Any
 class TeamPolicy(Protocol):
     """The interface shared by handcrafted teams and trained networks."""
 
-    name: str
+    @property
+    def name(self) -> str:
+        """A short name for tables and pictures."""
+        ...
 
     def init_carry(self, players_per_team: int) -> Carry:
         """The memory at the start of an episode for a team of ``players_per_team``."""

@@ -1,0 +1,247 @@
+"""Matches: G games between any two TeamPolicies, as one compiled program.
+
+``play_match`` runs every game of a match at once: ``lax.map`` over chunks of games, ``vmap`` over
+the games of a chunk, ``lax.scan`` over the steps of an episode. The home team plays side 0 in the
+first half of the games and side 1 in the second half (``swap_sides``), so neither team profits
+from a side. Both sides are handled in the same program: each game carries its home side, and the
+observation slices and the action order are chosen with ``jnp.where``, so one compile serves all.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import struct
+
+from elevens.env.params import EnvParams
+from elevens.env.soccer import Soccer
+from elevens.env.state import Observation, State
+from elevens.teams.base import Carry, TeamPolicy
+
+DEFAULT_CHUNK_SIZE = 128
+"""Games vmapped together. Small batches keep the observations in cache (PERFORMANCE_NOTES.md):
+500 games of 11 v 11 (teamwork vs naive, 400 steps) ran in 1.5 s at chunks of 125, 1.6 s at 250
+and 2.2 s at 500 on the 2-core CPU, after a compile of a few seconds."""
+
+
+@struct.dataclass
+class MatchRecord:
+    """What happened at every step of every game, world frame. Entry ``t`` holds the state the
+    players saw at step ``t`` and the actions they took there."""
+
+    positions: jax.Array  # f32[G, T, 2n, 2] player centres, team 0 first
+    headings: jax.Array  # f32[G, T, 2n] radians
+    ball_position: jax.Array  # f32[G, T, 2]
+    ball_velocity: jax.Array  # f32[G, T, 2]
+    score: jax.Array  # i32[G, T, 2] goals of side 0 and side 1 so far
+    actions: jax.Array  # f32[G, T, 2, n, 2] (side, player, (move, rot)) as applied: clipped, NaN 0
+
+
+@struct.dataclass
+class MatchResult:
+    """A match from the HOME team's point of view."""
+
+    goals_for: jax.Array  # i32[G] goals of the home team
+    goals_against: jax.Array  # i32[G] goals of the away team
+    outcome: jax.Array  # f32[G] 1 home win, 0.5 draw, 0 home loss
+    home_side: jax.Array  # i32[G] the side (0 or 1) the home team played
+    record: MatchRecord | None = None  # per-step history when played with record=True
+
+
+class _GameCarry(struct.PyTreeNode):
+    state: State
+    home_carry: Carry
+    away_carry: Carry
+
+
+class _GameInput(struct.PyTreeNode):
+    key: jax.Array  # key[] of one game
+    home_side: jax.Array  # i32[]
+
+
+def outcome_from_score(goals_for: jax.Array, goals_against: jax.Array) -> jax.Array:
+    """f32[...]: 1 where goals_for > goals_against, 0.5 on a draw, 0 on a loss."""
+    return jnp.where(
+        goals_for > goals_against, 1.0, jnp.where(goals_for == goals_against, 0.5, 0.0)
+    ).astype(jnp.float32)
+
+
+def home_sides(num_games: int, swap_sides: bool = True) -> np.ndarray:
+    """i32[G]: side 0 for the first ceil(G/2) games and side 1 for the rest when swap_sides."""
+    sides = np.zeros(num_games, np.int32)
+    if swap_sides:
+        sides[(num_games + 1) // 2 :] = 1
+    return sides
+
+
+def _side_view(obs: Observation, side: jax.Array) -> Observation:
+    """The observation of team ``side`` (traced i32[]), as a select, not a gather."""
+    first, second = obs.team(0), obs.team(1)
+    return jax.tree.map(lambda a, b: jnp.where(side == 0, a, b), first, second)
+
+
+def _play_game(
+    env: Soccer,
+    home: TeamPolicy,
+    away: TeamPolicy,
+    num_steps: int,
+    record: bool,
+    params: EnvParams,
+    home_params: Any,
+    away_params: Any,
+    game: _GameInput,
+) -> tuple[jax.Array, MatchRecord | None]:
+    """One game -> (final score i32[2] by side, per-step record or None)."""
+    n = env.players_per_team
+    reset_key, play_key = jax.random.split(game.key)
+    state, _ = env.reset(reset_key, params)
+    carry = _GameCarry(state=state, home_carry=home.init_carry(n), away_carry=away.init_carry(n))
+
+    def step(carry: _GameCarry, step_keys: jax.Array) -> tuple[_GameCarry, MatchRecord | None]:
+        home_key, away_key, env_key = step_keys[0], step_keys[1], step_keys[2]
+        # Observe the carried state, not the one a step would return: XLA then materialises it
+        # instead of fusing the physics into every observation element (PERFORMANCE_NOTES.md).
+        obs = env.observe(carry.state, params)
+        side = game.home_side
+        home_carry, home_actions = home.act(
+            home_params, carry.home_carry, _side_view(obs, side), home_key
+        )
+        away_carry, away_actions = away.act(
+            away_params, carry.away_carry, _side_view(obs, 1 - side), away_key
+        )
+        actions = jnp.where(
+            side == 0,
+            jnp.stack([home_actions, away_actions]),
+            jnp.stack([away_actions, home_actions]),
+        ).astype(jnp.float32)
+        # What the env applies (it clips, and NaN counts as 0), so the record holds that.
+        actions = jnp.clip(jnp.where(jnp.isnan(actions), 0.0, actions), -1.0, 1.0)
+        state, _, _, _ = env.transition(env_key, carry.state, actions, params)
+        history = None
+        if record:
+            history = MatchRecord(
+                positions=carry.state.positions,
+                headings=carry.state.headings,
+                ball_position=carry.state.ball_position,
+                ball_velocity=carry.state.ball_velocity,
+                score=carry.state.score,
+                actions=actions,
+            )
+        return _GameCarry(state=state, home_carry=home_carry, away_carry=away_carry), history
+
+    # All keys of the episode in one draw: each threefry call is a loop of its own on CPU.
+    step_keys = jax.random.split(play_key, (num_steps, 3))  # (home, away, env) per step
+    final, history = jax.lax.scan(step, carry, step_keys)
+    return final.state.score, history
+
+
+@functools.partial(
+    jax.jit, static_argnames=("env", "home", "away", "num_steps", "chunk_size", "record")
+)
+def _play_games(
+    params: EnvParams,
+    home_params: Any,
+    away_params: Any,
+    keys: jax.Array,
+    sides: jax.Array,
+    *,
+    env: Soccer,
+    home: TeamPolicy,
+    away: TeamPolicy,
+    num_steps: int,
+    chunk_size: int,
+    record: bool,
+) -> tuple[jax.Array, MatchRecord | None]:
+    """keys key[G'], sides i32[G'] (G' a multiple of chunk_size) -> (scores i32[G', 2], record)."""
+    game = functools.partial(
+        _play_game, env, home, away, num_steps, record, params, home_params, away_params
+    )
+    return jax.lax.map(game, _GameInput(key=keys, home_side=sides), batch_size=chunk_size)
+
+
+def play_match(
+    env: Soccer,
+    params: EnvParams,
+    home: TeamPolicy,
+    away: TeamPolicy,
+    key: jax.Array,
+    num_games: int,
+    home_params: Any = None,
+    away_params: Any = None,
+    swap_sides: bool = True,
+    record: bool = False,
+    chunk_size: int = DEFAULT_CHUNK_SIZE,
+) -> MatchResult:
+    """Play ``num_games`` full episodes of ``home`` against ``away``.
+
+    home/away: TeamPolicies (hashable, e.g. frozen dataclasses: they are static to the compile),
+    acting with home_params/away_params. key: a ``jax.random.key``; game ``g`` uses
+    ``split(key, G)[g]``, so a key gives bit-identical results for the same chunk size (another
+    chunk size plays the same games, up to float rounding of the wider or narrower batch).
+    With ``swap_sides`` the home team plays side 0 in the first ceil(G/2) games and side 1 in
+    the rest; otherwise always side 0. Episodes last ``params.episode_length`` steps (static: a
+    new length recompiles). Games run ``chunk_size`` at a time (vmapped) to bound memory.
+    Compiles once per (env, policies, G, episode length, record, chunk size).
+    Returns a MatchResult with ``[G]`` fields (``[G, T, ...]`` in ``record`` when record=True).
+    """
+    if num_games < 1:
+        raise ValueError(f"num_games={num_games!r} is invalid: it must be >= 1")
+    if chunk_size < 1:
+        raise ValueError(f"chunk_size={chunk_size!r} is invalid: it must be >= 1")
+    num_steps = int(params.episode_length)
+    # Equal chunks with the least padding: e.g. 500 games at chunk_size 128 run as 4 x 125.
+    num_chunks = math.ceil(num_games / chunk_size)
+    chunk = math.ceil(num_games / num_chunks)
+    padded = num_chunks * chunk
+    sides = home_sides(num_games, swap_sides)
+    game_keys = jax.random.split(key, num_games)
+    if padded > num_games:
+        game_keys = jnp.concatenate([game_keys, game_keys[: padded - num_games]])
+        sides = np.concatenate([sides, sides[: padded - num_games]])
+    scores, history = _play_games(
+        params,
+        home_params,
+        away_params,
+        game_keys,
+        jnp.asarray(sides),
+        env=env,
+        home=home,
+        away=away,
+        num_steps=num_steps,
+        chunk_size=chunk,
+        record=record,
+    )
+    scores = scores[:num_games]
+    if history is not None:
+        history = jax.tree.map(lambda x: x[:num_games], history)
+    home_side = jnp.asarray(sides[:num_games])
+    goals_for = jnp.where(home_side == 0, scores[:, 0], scores[:, 1])
+    goals_against = jnp.where(home_side == 0, scores[:, 1], scores[:, 0])
+    return MatchResult(
+        goals_for=goals_for,
+        goals_against=goals_against,
+        outcome=outcome_from_score(goals_for, goals_against),
+        home_side=home_side,
+        record=history,
+    )
+
+
+def summary(result: MatchResult) -> dict[str, float]:
+    """Host-side numbers of a match, home team's view: mean and std of the outcome, win, draw
+    and loss fractions, mean goals for and against, and the number of games."""
+    outcome = np.asarray(result.outcome, np.float64)
+    return {
+        "games": float(outcome.size),
+        "mean": float(outcome.mean()),
+        "std": float(outcome.std()),
+        "win": float(np.mean(outcome == 1.0)),
+        "draw": float(np.mean(outcome == 0.5)),
+        "loss": float(np.mean(outcome == 0.0)),
+        "goals_for": float(np.mean(np.asarray(result.goals_for))),
+        "goals_against": float(np.mean(np.asarray(result.goals_against))),
+    }

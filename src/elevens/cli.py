@@ -10,6 +10,15 @@ from typing import Annotated
 
 import tyro
 
+from elevens.eval.cli_eval import (
+    AnalyzeArgs,
+    CurvesArgs,
+    RenderArgs,
+    TournamentArgs,
+    ViewArgs,
+    run_eval_command,
+)
+
 TEAM_NAMES = ("random", "naive", "teamwork")
 
 
@@ -88,6 +97,11 @@ def bench_env(args: EnvBenchArgs) -> None:
 Command = (
     Annotated[PlayArgs, tyro.conf.subcommand("play")]
     | Annotated[EnvBenchArgs, tyro.conf.subcommand("bench-env")]
+    | Annotated[TournamentArgs, tyro.conf.subcommand("tournament")]
+    | Annotated[AnalyzeArgs, tyro.conf.subcommand("analyze")]
+    | Annotated[CurvesArgs, tyro.conf.subcommand("curves")]
+    | Annotated[RenderArgs, tyro.conf.subcommand("render")]
+    | Annotated[ViewArgs, tyro.conf.subcommand("view")]
 )
 
 
@@ -102,4 +116,6 @@ def main(argv: list[str] | None = None) -> None:
         play(args)
     elif isinstance(args, EnvBenchArgs):
         bench_env(args)
+    elif isinstance(args, TournamentArgs | AnalyzeArgs | CurvesArgs | RenderArgs | ViewArgs):
+        run_eval_command(args)
 

@@ -1,0 +1,324 @@
+"""The evaluation subcommands: ``tournament``, ``analyze``, ``curves``, ``render``, ``view``.
+
+Each has a typed args dataclass (tyro builds the flags from its fields and docstrings) and a
+command function. ``elevens.cli`` wires them in; heavy imports (JAX, matplotlib) happen inside
+the command functions so ``elevens --help`` stays fast. Examples::
+
+    elevens tournament random naive teamwork --games 500 --out results/tournament
+    elevens tournament naive teamwork 4p=runs/2v2 22p=runs/11v11@5000 --anchor naive
+    elevens analyze naive teamwork 22p=runs/11v11 --against 22p=runs/11v11 --games 500
+    elevens curves runs/seed0 runs/seed1 runs/seed2 --against naive --out fig_6_4.png
+    elevens render replays/game_0000.npz --out game.mp4 --view 3
+    elevens view replays/*.npz
+
+A team is ``random``, ``naive``, ``teamwork`` or a checkpoint ``PATH[@ITERATION]``, optionally
+labelled ``LABEL=...`` (``elevens.eval.teams``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Annotated, Any
+
+import tyro
+
+
+@dataclasses.dataclass(frozen=True)
+class TournamentArgs:
+    """Round robin between teams (thesis table 6.3, figure 6.7) with Bradley-Terry ratings."""
+
+    teams: tyro.conf.Positional[Annotated[tuple[str, ...], tyro.conf.arg(metavar="TEAM...")]]
+    """Teams: random, naive, teamwork, or a checkpoint PATH[@ITERATION], as [LABEL=]SPEC."""
+    games: int = 500
+    """Games per pair of teams (sides swapped at half time); every team also plays itself."""
+    players: int = 11
+    """Players per team, 1..11 (a checkpoint trained at any size plays any size)."""
+    out: Path = Path("tournament")
+    """Directory for table.csv, pairs.csv, ratings.csv, tournament.json and the PNGs."""
+    seed: int = 0
+    """Seed of the games (match m uses fold_in(key(seed), m)) and of the bootstrap."""
+    steps: int | None = None
+    """Steps per game (default: the full episode, 400)."""
+    anchor: str | None = None
+    """Team (label) whose rating is 0; default: the ratings' mean is 0."""
+    bootstrap: int = 1000
+    """Bootstrap resamples for the ratings' intervals (0: Fisher standard errors only)."""
+    deterministic: bool | None = None
+    """Checkpoints play tanh(mean) (True) or sample (False); default: each run's setting."""
+    chunk_size: int = 128
+    """Games vmapped together (memory vs speed)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class AnalyzeArgs:
+    """Gameplay metrics (thesis table 6.4) and per-player position heat maps (figs 6.8, 6.9)."""
+
+    teams: tyro.conf.Positional[Annotated[tuple[str, ...], tyro.conf.arg(metavar="TEAM...")]]
+    """Teams to analyse (one column each), all against the same opponent."""
+    against: str
+    """The opponent: random, naive, teamwork, or a checkpoint [LABEL=]PATH[@ITERATION]."""
+    games: int = 500
+    """Games per team (sides swapped at half time)."""
+    players: int = 11
+    """Players per team, 1..11."""
+    out: Path = Path("analysis")
+    """Directory for metrics.csv, metrics.json and heatmap_<team>.png."""
+    seed: int = 0
+    """Seed of the games."""
+    steps: int | None = None
+    """Steps per game (default: the full episode, 400)."""
+    heatmaps: bool = True
+    """Draw the position heat maps."""
+    replays: int = 0
+    """Also save the first N games of each match as replays (out/replays/<team>/)."""
+    deterministic: bool | None = None
+    """Checkpoints play tanh(mean) (True) or sample (False); default: each run's setting."""
+    chunk_size: int = 64
+    """Games vmapped together (recording keeps every step, so smaller than a tournament's)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class CurvesArgs:
+    """Learning curves over seeds (thesis figure 6.4) from training runs' metrics.csv."""
+
+    runs: tyro.conf.Positional[Annotated[tuple[str, ...], tyro.conf.arg(metavar="RUN...")]]
+    """Run directories (each with metrics.csv), one per seed."""
+    against: str = "naive"
+    """The team whose outcome is plotted."""
+    out: Path = Path("learning_curves.png")
+    """Output PNG."""
+    x: tuple[str, ...] = ("hours", "env_steps")
+    """x axes, one panel each: hours, env_steps, iteration, or any logged metric name."""
+    metric: str = "eval/{team}/outcome"
+    """Metric name; {team} is replaced by each evaluated team (vertical lines) and --against."""
+    threshold: float = 0.5
+    """A team counts as outperformed where the mean curve against it first rises above this."""
+    title: str | None = None
+    """Figure title (default: the runs and the team)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class RenderArgs:
+    """Draw a saved replay as an MP4 or GIF."""
+
+    replay: tyro.conf.Positional[Annotated[Path, tyro.conf.arg(metavar="REPLAY")]]
+    """A replay file (.npz, from analyze --replays or elevens.eval.replay.save_replay)."""
+    out: Path = Path("game.mp4")
+    """Output video: .mp4 or .gif."""
+    view: int | None = None
+    """Draw this player's field of view (world row: team 0 is 0..n-1, team 1 is n..2n-1)."""
+    fps: int = 20
+    """Frames per second."""
+    scale: int = 6
+    """Pixels per metre."""
+
+
+@dataclasses.dataclass(frozen=True)
+class ViewArgs:
+    """Watch replays in the browser: a local web viewer on 127.0.0.1."""
+
+    replays: tyro.conf.Positional[
+        Annotated[tuple[Path, ...], tyro.conf.arg(metavar="REPLAY...")]
+    ] = ()
+    """Replay files (.npz)."""
+    port: int = 0
+    """Port on 127.0.0.1 (0: any free port; the URL is printed)."""
+    open: bool = False
+    """Open the page in the default browser."""
+
+
+# --------------------------------------------------------------------------------------------
+# Commands
+# --------------------------------------------------------------------------------------------
+
+
+def _env(players: int, steps: int | None) -> tuple[Any, Any]:
+    import elevens
+
+    overrides = {} if steps is None else {"episode_length": steps}
+    return elevens.make(f"{players}v{players}", **overrides)
+
+
+def _load_teams(specs: tuple[str, ...], players: int, deterministic: bool | None) -> list[Any]:
+    import dataclasses as dc
+
+    from elevens.eval.teams import check_team_size, load_team, unique_names
+
+    teams = [load_team(spec, deterministic=deterministic) for spec in specs]
+    for team in teams:
+        check_team_size(team, players)
+    names = unique_names(teams)
+    return [dc.replace(team, name=name) for team, name in zip(teams, names, strict=True)]
+
+
+def tournament_command(args: TournamentArgs) -> Any:
+    """Play the round robin, print the table and ratings, write the files. Returns the
+    ``Tournament``."""
+    from rich.console import Console
+
+    from elevens.eval.tournament import print_tournament, run_tournament, save_tournament
+
+    if not args.teams:
+        raise ValueError("no teams given: e.g. elevens tournament random naive teamwork")
+    if args.games < 1:
+        raise ValueError(f"games={args.games} is invalid: it must be >= 1")
+    console = Console()
+    env, params = _env(args.players, args.steps)
+    teams = _load_teams(args.teams, args.players, args.deterministic)
+    began = time.perf_counter()
+
+    def on_match(index: int, total: int, home: str, away: str, result: Any) -> None:
+        import numpy as np
+
+        mean = float(np.mean(result.outcome))
+        console.print(
+            f"match {index + 1}/{total}: {home} v {away}: {mean:.3f} "
+            f"({time.perf_counter() - began:.1f} s)", markup=False,
+        )
+
+    tournament = run_tournament(
+        teams, env, params, num_games=args.games, seed=args.seed,
+        chunk_size=args.chunk_size, on_match=on_match, anchor=args.anchor,
+        bootstrap_samples=args.bootstrap,
+    )
+    print_tournament(tournament, console)
+    paths = save_tournament(tournament, args.out)
+    console.print(f"{len(teams)} teams, {args.games} games a pair, {args.players} v "
+                  f"{args.players}: {tournament.wall_s:.1f} s", markup=False)
+    for kind, path in paths.items():
+        console.print(f"  {kind}: {path}", markup=False)
+    return tournament
+
+
+def analyze_command(args: AnalyzeArgs) -> Any:
+    """Play each team against the opponent with records; print and save the metrics, draw the
+    heat maps. Returns the list of ``TeamMetrics``."""
+    import jax
+    from rich.console import Console
+
+    from elevens.eval.heatmap import plot_heatmaps
+    from elevens.eval.match import play_match
+    from elevens.eval.metrics import (
+        compute_metrics,
+        print_metrics,
+        save_metrics,
+        team_trajectories,
+    )
+    from elevens.eval.replay import save_match_replays
+
+    if not args.teams:
+        raise ValueError("no teams given: e.g. elevens analyze naive teamwork --against naive")
+    if args.games < 1:
+        raise ValueError(f"games={args.games} is invalid: it must be >= 1")
+    console = Console()
+    env, params = _env(args.players, args.steps)
+    teams = _load_teams(args.teams, args.players, args.deterministic)
+    (opponent,) = _load_teams((args.against,), args.players, args.deterministic)
+    out = Path(args.out)
+    rows = []
+    for index, team in enumerate(teams):
+        began = time.perf_counter()
+        result = play_match(
+            env, params, team.policy, opponent.policy, jax.random.fold_in(jax.random.key(
+                args.seed), index), args.games, home_params=team.params,
+            away_params=opponent.params, record=True, chunk_size=args.chunk_size,
+        )
+        result = jax.device_get(result)
+        rows.append(compute_metrics(result, params, team_name=team.name,
+                                    opponent_name=opponent.name))
+        message = f"{team.name} v {opponent.name}: {args.games} games"
+        if args.heatmaps:
+            path = plot_heatmaps(
+                team_trajectories(result).positions, params, out / f"heatmap_{team.name}.png",
+                title=f"Positions of {team.name} against {opponent.name} "
+                f"({args.players} v {args.players}, {args.games} games, own frame)",
+            )
+            message += f", heat map {path}"
+        if args.replays > 0:
+            saved = save_match_replays(
+                result, params, out / "replays" / team.name, team.name, opponent.name,
+                games=range(min(args.replays, args.games)), source={"seed": args.seed},
+            )
+            message += f", {len(saved)} replays in {saved[0].parent}"
+        console.print(f"{message} ({time.perf_counter() - began:.1f} s)", markup=False)
+    print_metrics(rows, console)
+    paths = save_metrics(rows, out / "metrics")
+    for kind, path in paths.items():
+        console.print(f"  {kind}: {path}", markup=False)
+    return rows
+
+
+def curves_command(args: CurvesArgs) -> Any:
+    """Draw the learning curves; print where each team is first outperformed."""
+    from elevens.eval.curves import plot_learning_curves
+
+    if not args.runs:
+        raise ValueError("no run directories given: e.g. elevens curves runs/a runs/b")
+    summary = plot_learning_curves(
+        args.runs, args.out, against=args.against, x_axes=args.x, metric=args.metric,
+        threshold=args.threshold, title=args.title,
+    )
+    for axis, teams in summary.first_outperformed.items():
+        for team, x in teams.items():
+            where = "never" if x is None else f"{x:.4g}"
+            print(f"first beats {team} (mean > {args.threshold}) at {axis} = {where}")
+    print(f"wrote {summary.path}")
+    return summary
+
+
+def render_command(args: RenderArgs) -> Path:
+    """Draw a replay to a video file."""
+    from elevens.eval.replay import load_replay, render_replay
+
+    replay = load_replay(args.replay)
+    path = render_replay(replay, args.out, view=args.view, fps=args.fps, scale=args.scale,
+                         progress=True)
+    print(f"{replay.team_names[0]} {replay.final_score[0]} : {replay.final_score[1]} "
+          f"{replay.team_names[1]}; wrote {path} ({replay.num_steps} frames)")
+    return path
+
+
+def view_command(args: ViewArgs) -> None:
+    """Serve the web viewer until Ctrl-C."""
+    from elevens.eval.viewer import view
+
+    view(args.replays, port=args.port, open_browser=args.open)
+
+
+COMMANDS: dict[type, Callable[[Any], Any]] = {
+    TournamentArgs: tournament_command,
+    AnalyzeArgs: analyze_command,
+    CurvesArgs: curves_command,
+    RenderArgs: render_command,
+    ViewArgs: view_command,
+}
+"""Args type -> command, for ``elevens.cli.main`` to dispatch with one lookup."""
+
+
+def run_eval_command(args: Any) -> Any:
+    """Run the command of an eval args object (any of the dataclasses above)."""
+    return COMMANDS[type(args)](args)
+
+
+EvalCommand = (
+    Annotated[TournamentArgs, tyro.conf.subcommand("tournament")]
+    | Annotated[AnalyzeArgs, tyro.conf.subcommand("analyze")]
+    | Annotated[CurvesArgs, tyro.conf.subcommand("curves")]
+    | Annotated[RenderArgs, tyro.conf.subcommand("render")]
+    | Annotated[ViewArgs, tyro.conf.subcommand("view")]
+)
+"""The five subcommands as one tyro union (``elevens.cli`` adds its members to its own)."""
+
+
+def main(argv: list[str] | None = None) -> Any:
+    """``python -m elevens.eval.cli_eval SUBCOMMAND ...``: the eval subcommands on their own."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    return run_eval_command(tyro.cli(EvalCommand, args=argv, prog="elevens"))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,241 @@
+"""Learning curves over seeds (thesis figure 6.4) from training runs' ``metrics.csv``.
+
+The trainer (``elevens.train.trainer``) logs, at the iteration of every evaluation,
+``eval/<team>/outcome`` (the learner's mean outcome against a handcrafted team) together with
+``time/hours`` (training wall time) and ``time/env_steps`` (game steps played) at the same step;
+``elevens.train.logging.read_metrics_csv`` reads them back as one curve per name.
+
+For one or more runs (seeds) this draws the mean outcome against a chosen team over each x axis
+(hours, env steps or iterations), with a band of ± one std over the runs, and a vertical line
+where the mean curve against each evaluated team first rises above 0.5 ("first outperformed").
+Runs are evaluated at different wall times, so curves are put on a common grid by linear
+interpolation over the x range that all runs cover; with a single run, or runs whose x values
+agree, the logged points are used as they are.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+DEFAULT_METRIC = "eval/{team}/outcome"
+"""Metric name template; ``{team}`` is replaced by the opponent's name."""
+X_AXES: dict[str, tuple[str | None, str, float, str]] = {
+    # alias: (metric name or None for the logged step, axis label, divisor, short unit)
+    "hours": ("time/hours", "training time (hours, wall clock)", 1.0, "h"),
+    "env_steps": ("time/env_steps", "env steps (millions of game steps)", 1e6, "M steps"),
+    "iteration": (None, "iteration", 1.0, "it."),
+}
+OUTPERFORM_THRESHOLD = 0.5
+GRID_POINTS = 200
+
+
+@dataclasses.dataclass(frozen=True)
+class Series:
+    """One run's metric against one x axis, sorted by x."""
+
+    run: str
+    x: np.ndarray  # f64[E]
+    y: np.ndarray  # f64[E]
+
+
+@dataclasses.dataclass(frozen=True)
+class Band:
+    """Mean and std over runs on a common x grid."""
+
+    x: np.ndarray  # f64[K]
+    mean: np.ndarray  # f64[K]
+    std: np.ndarray  # f64[K] population std over runs (0 for one run)
+    runs: int
+
+
+def x_metric(alias: str) -> tuple[str | None, str, float, str]:
+    """(metric name or None for the step, axis label, divisor, short unit) of an x axis alias
+    (hours, env_steps, iteration) or of any logged metric name."""
+    if alias in X_AXES:
+        return X_AXES[alias]
+    if alias in ("step", "iter"):
+        return X_AXES["iteration"]
+    return alias, alias, 1.0, ""
+
+
+def run_series(
+    curves: dict[str, Any], metric: str, x_name: str | None, run: str = ""
+) -> Series:
+    """``metric`` against ``x_name`` (another metric, read at the same steps, or None: the step).
+
+    curves: ``read_metrics_csv`` output. Raises ``KeyError`` naming the missing metric and the
+    metrics the run has.
+    """
+    if metric not in curves:
+        raise KeyError(
+            f"run {run or '?'} has no metric {metric!r}; it has: "
+            f"{', '.join(sorted(name for name in curves if name.startswith('eval/'))) or 'none'}"
+        )
+    curve = curves[metric]
+    steps, y = np.asarray(curve.steps), np.asarray(curve.values, np.float64)
+    if x_name is None:
+        x = steps.astype(np.float64)
+    else:
+        if x_name not in curves:
+            raise KeyError(f"run {run or '?'} has no x metric {x_name!r}")
+        by_step = dict(zip(curves[x_name].steps.tolist(), curves[x_name].values.tolist(),
+                           strict=True))
+        x = np.asarray([by_step.get(int(s), math.nan) for s in steps], np.float64)
+    keep = np.isfinite(x) & np.isfinite(y)
+    order = np.argsort(x[keep], kind="stable")
+    return Series(run=run, x=x[keep][order], y=y[keep][order])
+
+
+def band(series: Sequence[Series], points: int = GRID_POINTS) -> Band:
+    """Mean ± std over runs. Identical x values are used as they are; otherwise the runs are
+    interpolated onto ``points`` x values spanning the range all of them cover."""
+    series = [s for s in series if s.x.size]
+    if not series:
+        raise ValueError("no run has any point to plot")
+    same_x = all(s.x.shape == series[0].x.shape and np.allclose(s.x, series[0].x)
+                 for s in series)
+    if same_x:
+        grid = series[0].x
+        values = np.stack([s.y for s in series])
+    else:
+        low = max(float(s.x[0]) for s in series)
+        high = min(float(s.x[-1]) for s in series)
+        if not high > low:
+            raise ValueError(
+                "the runs' x ranges do not overlap: "
+                + ", ".join(f"{s.run} [{s.x[0]:g}, {s.x[-1]:g}]" for s in series)
+            )
+        grid = np.linspace(low, high, points)
+        values = np.stack([np.interp(grid, s.x, s.y) for s in series])
+    return Band(x=grid, mean=values.mean(axis=0), std=values.std(axis=0), runs=len(series))
+
+
+def first_above(curve: Band, threshold: float = OUTPERFORM_THRESHOLD) -> float | None:
+    """The first x where the mean is above ``threshold`` (None if it never is)."""
+    above = np.flatnonzero(curve.mean > threshold)
+    return float(curve.x[above[0]]) if above.size else None
+
+
+def _teams_of(curves_per_run: Sequence[dict[str, Any]], template: str) -> list[str]:
+    """Teams for which every run has the templated metric."""
+    prefix, _, suffix = template.partition("{team}")
+    found = None
+    for curves in curves_per_run:
+        teams = {
+            name[len(prefix): len(name) - len(suffix)]
+            for name in curves
+            if name.startswith(prefix) and name.endswith(suffix)
+            and len(name) > len(prefix) + len(suffix)
+        }
+        found = teams if found is None else found & teams
+    return sorted(found or ())
+
+
+@dataclasses.dataclass(frozen=True)
+class CurvesSummary:
+    """What ``plot_learning_curves`` found: per x axis, the first x each team is outperformed."""
+
+    path: Path
+    runs: tuple[str, ...]
+    against: str
+    first_outperformed: dict[str, dict[str, float | None]]  # x alias -> team -> x (or None)
+    final_mean: float  # mean over runs of the last logged value against ``against``
+
+
+def plot_learning_curves(
+    run_dirs: Sequence[str | Path],
+    out: str | Path,
+    *,
+    against: str = "naive",
+    x_axes: Sequence[str] = ("hours", "env_steps"),
+    metric: str = DEFAULT_METRIC,
+    threshold: float = OUTPERFORM_THRESHOLD,
+    title: str | None = None,
+) -> CurvesSummary:
+    """Figure 6.4 from runs' ``metrics.csv``: one panel per x axis, PNG at ``out``.
+
+    metric: a name template with ``{team}`` (default ``eval/{team}/outcome``), or a plain
+    metric name (then only ``against`` labels it and no vertical lines are drawn).
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from elevens.train.logging import read_metrics_csv
+
+    if not run_dirs:
+        raise ValueError("no run directory given")
+    names = []
+    curves_per_run = []
+    for run_dir in run_dirs:
+        path = Path(run_dir)
+        csv_path = path if path.is_file() else path / "metrics.csv"
+        if not csv_path.is_file():
+            raise FileNotFoundError(f"{csv_path} does not exist (is {run_dir} a run directory?)")
+        curves_per_run.append(read_metrics_csv(csv_path))
+        names.append(path.name if path.is_dir() else path.parent.name)
+    templated = "{team}" in metric
+    main_metric = metric.format(team=against) if templated else metric
+    teams = _teams_of(curves_per_run, metric) if templated else []
+
+    figure, axes = plt.subplots(
+        1, len(x_axes), figsize=(5.6 * len(x_axes), 4.4), sharey=True, squeeze=False
+    )
+    firsts: dict[str, dict[str, float | None]] = {}
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    final_mean = math.nan
+    for axis, alias in zip(axes[0], x_axes, strict=True):
+        x_name, label, divisor, unit = x_metric(alias)
+        series = [
+            run_series(curves, main_metric, x_name, run)
+            for curves, run in zip(curves_per_run, names, strict=True)
+        ]
+        main = band(series)
+        final_mean = float(np.mean([s.y[-1] for s in series if s.y.size]))
+        if len(series) > 1:
+            for s in series:
+                axis.plot(s.x / divisor, s.y, color="grey", linewidth=0.7, alpha=0.5)
+        axis.plot(main.x / divisor, main.mean, color="#1f4e9c", linewidth=2,
+                  label=f"mean over {main.runs} run{'s' if main.runs > 1 else ''}")
+        if main.runs > 1:
+            axis.fill_between(main.x / divisor, main.mean - main.std, main.mean + main.std,
+                              color="#1f4e9c", alpha=0.2, label="± 1 std over runs")
+        axis.axhline(threshold, color="grey", linestyle=":", linewidth=1)
+        firsts[alias] = {}
+        for index, team in enumerate(teams):
+            team_band = band([
+                run_series(curves, metric.format(team=team), x_name, run)
+                for curves, run in zip(curves_per_run, names, strict=True)
+            ])
+            crossing = first_above(team_band, threshold)
+            firsts[alias][team] = crossing
+            if crossing is not None:
+                where = f"{crossing / divisor:.3g} {unit}".rstrip()
+                axis.axvline(crossing / divisor, color=colours[(index + 1) % len(colours)],
+                             linestyle="--", linewidth=1.2, label=f"first beats {team} at {where}")
+        axis.set_xlabel(label)
+        axis.set_ylim(-0.02, 1.02)
+        axis.grid(alpha=0.3)
+        axis.legend(loc="lower right", fontsize=8)
+    axes[0][0].set_ylabel(f"mean outcome against {against}\n(win 1, draw 0.5, loss 0)")
+    figure.suptitle(
+        title
+        or f"Learning curve against {against} ({len(names)} run{'s' if len(names) > 1 else ''}: "
+        f"{', '.join(names)})"
+    )
+    figure.tight_layout()
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    figure.savefig(out, dpi=110)
+    plt.close(figure)
+    return CurvesSummary(
+        path=out, runs=tuple(names), against=against, first_outperformed=firsts,
+        final_mean=final_mean,
+    )

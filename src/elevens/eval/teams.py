@@ -1,0 +1,276 @@
+"""Team specs for the evaluation commands: a handcrafted team by name, or a trained checkpoint.
+
+A spec is one command-line word:
+
+* ``random``, ``naive``, ``teamwork``: the handcrafted teams (``elevens.eval.play.resolve_team``);
+* ``PATH`` or ``PATH@ITERATION``: a checkpoint of a training run. ``PATH`` is a run directory
+  (holding ``checkpoints/``), a checkpoint directory (holding the step directories) or one step
+  directory (``runs/a/checkpoints/500``). Without ``@ITERATION`` the latest checkpoint is used.
+* ``LABEL=SPEC``: either of the above, shown as ``LABEL`` in tables and plots
+  (``22p=runs/11v11@5000``). LABEL may not contain ``/``, ``=`` or ``@``.
+
+A trained policy's parameters do not depend on the team size (attention over a variable number of
+entities, thesis 5.2.10), so a checkpoint trained in 2 v 2 plays 11 v 11 as it is. The exception
+is the feedforward ablation (``network.use_attention = false``), whose first layer is sized for the
+team it trained with; ``check_team_size`` refuses it at another size with a clear message.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import re
+from pathlib import Path
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+
+from elevens.teams.base import TeamPolicy
+
+HANDCRAFTED_NAMES: tuple[str, ...] = ("random", "naive", "teamwork")
+CHECKPOINTS_SUBDIR = "checkpoints"
+"""Where the trainer writes checkpoints inside a run directory (``trainer.CHECKPOINT_DIR``)."""
+NETWORK_TEAM_NAME = "network"
+"""The ``NetworkTeam.name`` of every loaded checkpoint. The team is a static argument of the
+compiled match, so equal architectures with equal names share one compile across checkpoints
+(their weights are arguments); the label shown in tables lives in ``Team.name`` instead."""
+
+_LABEL = re.compile(r"^[^/=@\s]+$")
+
+
+@dataclasses.dataclass(frozen=True)
+class TeamSpec:
+    """A parsed team spec (see the module docstring)."""
+
+    text: str
+    """The spec as given."""
+    name: str
+    """The label for tables and plots."""
+    handcrafted: str | None = None
+    """The handcrafted team's name, or None for a checkpoint."""
+    path: Path | None = None
+    """The checkpoint path as given (run, checkpoint or step directory), or None."""
+    iteration: int | None = None
+    """The checkpoint's iteration; None: the latest (or the step directory's own)."""
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Team:
+    """A team ready to play: a TeamPolicy, its params and a label."""
+
+    name: str
+    """Label for tables and plots."""
+    policy: TeamPolicy
+    """Hashable (it is static to the compiled match)."""
+    params: Any = None
+    """The policy's params (None for the handcrafted teams)."""
+    trained_players: int | None = None
+    """Players per team the checkpoint trained with (None for handcrafted teams)."""
+    size_dependent: bool = False
+    """True if the params only fit a team of ``trained_players`` (the feedforward ablation)."""
+    spec: str = ""
+    """The spec it was loaded from."""
+
+
+def parse_team_spec(text: str) -> TeamSpec:
+    """Parse one spec word. Raises ``ValueError`` for an empty word, a bad label or iteration;
+    the path is not checked here (``load_team`` does that)."""
+    original = text
+    text = text.strip()
+    if not text:
+        raise ValueError("team spec is empty: use random, naive, teamwork or a checkpoint path")
+    label: str | None = None
+    head, sep, tail = text.partition("=")
+    if sep and "/" not in head and os.sep not in head:
+        if not _LABEL.match(head):
+            raise ValueError(
+                f"team spec {original!r}: label {head!r} is invalid (no spaces, '/', '=' or '@')"
+            )
+        label, text = head, tail.strip()
+        if not text:
+            raise ValueError(f"team spec {original!r}: nothing after the label {label!r}")
+    if text in HANDCRAFTED_NAMES:
+        return TeamSpec(text=original, name=label or text, handcrafted=text)
+    path_text, iteration = text, None
+    before, at, after = text.rpartition("@")
+    if at:
+        if not re.fullmatch(r"\d+", after):
+            raise ValueError(
+                f"team spec {original!r}: the iteration after '@' must be a whole number >= 0, "
+                f"got {after!r}"
+            )
+        path_text, iteration = before, int(after)
+    if not path_text:
+        raise ValueError(f"team spec {original!r} has no checkpoint path before '@'")
+    path = Path(path_text)
+    if label is None:
+        base = path.parent.name if path.name in (CHECKPOINTS_SUBDIR, "") else path.name
+        label = base or path_text
+        if iteration is not None:
+            label = f"{label}@{iteration}"
+    return TeamSpec(text=original, name=label, path=path, iteration=iteration)
+
+
+def _checkpoint_directory(path: Path) -> tuple[Path, int | None]:
+    """(directory holding step directories, the step the path names or None)."""
+    if not path.exists():
+        raise FileNotFoundError(
+            f"team spec: {path} does not exist (expected a run directory, its checkpoints/ "
+            f"directory or a step directory; or one of {', '.join(HANDCRAFTED_NAMES)})"
+        )
+    if (path / CHECKPOINTS_SUBDIR).is_dir():
+        return path / CHECKPOINTS_SUBDIR, None
+    if path.name.isdigit() and (path / "state").is_dir():
+        return path.parent, int(path.name)
+    return path, None
+
+
+def _policy_target(policy: Any, players_per_team: int) -> Any:
+    """Abstract ``{"params": ...}`` of ``policy`` (shapes only: nothing is computed)."""
+    import elevens
+
+    env, params = elevens.make(f"{players_per_team}v{players_per_team}")
+    _, obs = jax.eval_shape(env.reset, jax.random.key(0), params)
+    team_obs = jax.tree.map(lambda leaf: jax.ShapeDtypeStruct(leaf.shape[1:], leaf.dtype), obs)
+    return jax.eval_shape(
+        policy.init,
+        jax.random.key(0),
+        policy.initial_carry((players_per_team,)),
+        team_obs,
+        jnp.zeros((players_per_team,), bool),
+    )
+
+
+def load_checkpoint_team(
+    path: str | os.PathLike[str],
+    iteration: int | None = None,
+    *,
+    deterministic: bool | None = None,
+) -> tuple[TeamPolicy, Any]:
+    """A trained checkpoint as ``(NetworkTeam, policy params)``, ready for ``play_match``.
+
+    path: a run directory (with ``checkpoints/``), a checkpoint directory, or a step directory.
+    iteration: the checkpoint's step; None takes the step directory's own or the latest.
+    deterministic: play ``tanh(mean)`` (True) or sample (False); None takes the run's
+    ``run.eval_deterministic`` (default False: sampling, as in training and the thesis).
+
+    What the loader expects (``elevens.train.trainer`` / ``checkpoint`` as of this writing):
+
+    * the step's ``config.json`` (``checkpoint.load_config``) is a ``TrainConfig.to_dict()``;
+      its ``network`` group builds the policy (``NetworkConfig.policy()``) and ``env.scenario``
+      gives the team size it trained with;
+    * the saved state is either the trainer's ``TrainState`` (restored against
+      ``jax.eval_shape(make_trainer(config).init, key)``; the policy is ``state.params.policy``),
+      or the policy's own variables ``{"params": ...}`` as ``AttentionPolicy.init`` returns them.
+
+    Raises FileNotFoundError (no such path or no checkpoint), ``CheckpointError`` (corrupt, or a
+    state of neither layout), ValueError (a config that is not a TrainConfig of this version).
+    """
+    team, params, _ = _load_checkpoint(Path(path), iteration, deterministic)
+    return team, params
+
+
+def _load_checkpoint(
+    path: Path, iteration: int | None, deterministic: bool | None
+) -> tuple[TeamPolicy, Any, Any]:
+    """(NetworkTeam, policy params, TrainConfig) of a checkpoint; see load_checkpoint_team."""
+    from elevens.nets.team import NetworkTeam
+    from elevens.train.checkpoint import Checkpointer, CheckpointError, load_config
+    from elevens.train.config import TrainConfig
+
+    directory, path_step = _checkpoint_directory(path)
+    if iteration is not None and path_step is not None and iteration != path_step:
+        raise ValueError(
+            f"{path} is the checkpoint of iteration {path_step}, but iteration {iteration} was "
+            "asked for"
+        )
+    step = iteration if iteration is not None else path_step
+    checkpointer = Checkpointer(directory, max_to_keep=None)
+    try:
+        if step is None:
+            step = checkpointer.latest_step()
+            if step is None:
+                raise FileNotFoundError(f"no checkpoint in {directory}")
+        elif step not in checkpointer.all_steps():
+            raise FileNotFoundError(
+                f"no checkpoint of iteration {step} in {directory}; saved iterations: "
+                f"{checkpointer.all_steps() or 'none'}"
+            )
+        raw_config = load_config(directory, step)
+        try:
+            config = TrainConfig.from_dict(raw_config)
+        except (TypeError, ValueError) as error:
+            raise ValueError(
+                f"checkpoint {directory / str(step)}: its config.json is not a TrainConfig of "
+                f"this version: {error}"
+            ) from error
+        policy = config.network.policy()
+        players = config.env.players_per_team
+        errors = []
+        policy_params = None
+        try:
+            from elevens.train.trainer import make_trainer
+
+            trainer = make_trainer(config)
+            target = jax.eval_shape(trainer.init, jax.random.key(0))
+            state, _, _ = checkpointer.restore(target, step)
+            policy_params = state.params.policy
+        except CheckpointError as error:
+            errors.append(f"as a TrainState: {error}")
+        if policy_params is None:
+            try:
+                policy_params, _, _ = checkpointer.restore(_policy_target(policy, players), step)
+            except CheckpointError as error:
+                errors.append(f"as policy variables: {error}")
+        if policy_params is None:
+            raise CheckpointError(
+                f"checkpoint {directory / str(step)} holds neither a TrainState nor policy "
+                "variables {'params': ...}: " + "; ".join(errors)
+            )
+    finally:
+        checkpointer.close()
+    if deterministic is None:
+        deterministic = bool(config.run.eval_deterministic)
+    team = NetworkTeam(policy=policy, deterministic=deterministic, name=NETWORK_TEAM_NAME)
+    return team, policy_params, config
+
+
+def load_team(spec: str | TeamSpec, *, deterministic: bool | None = None) -> Team:
+    """A ``Team`` from a spec word (or a parsed ``TeamSpec``); see the module docstring."""
+    from elevens.eval.play import resolve_team
+
+    parsed = parse_team_spec(spec) if isinstance(spec, str) else spec
+    if parsed.handcrafted is not None:
+        return Team(name=parsed.name, policy=resolve_team(parsed.handcrafted), spec=parsed.text)
+    assert parsed.path is not None
+    policy, params, config = _load_checkpoint(parsed.path, parsed.iteration, deterministic)
+    return Team(
+        name=parsed.name,
+        policy=policy,
+        params=params,
+        trained_players=config.env.players_per_team,
+        size_dependent=not config.network.use_attention,
+        spec=parsed.text,
+    )
+
+
+def check_team_size(team: Team, players_per_team: int) -> None:
+    """Raise ``ValueError`` if ``team``'s params cannot play ``players_per_team`` a side."""
+    if team.size_dependent and team.trained_players != players_per_team:
+        raise ValueError(
+            f"team {team.name!r} ({team.spec}) is a feedforward network (no attention) trained "
+            f"with {team.trained_players} players a side; its first layer only fits that team "
+            f"size, so it cannot play {players_per_team} a side"
+        )
+
+
+def unique_names(teams: list[Team]) -> list[str]:
+    """The teams' labels, with ``#2``, ``#3`` appended to repeats so table rows stay apart."""
+    seen: dict[str, int] = {}
+    names = []
+    for team in teams:
+        count = seen.get(team.name, 0) + 1
+        seen[team.name] = count
+        names.append(team.name if count == 1 else f"{team.name}#{count}")
+    return names

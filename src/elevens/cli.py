@@ -1,4 +1,4 @@
-"""`elevens ...` subcommands (tyro). Heavy imports happen inside each command."""
+"""`elevens ...` subcommands (tyro). Rendering, matches and training run inside each command."""
 
 from __future__ import annotations
 
@@ -18,6 +18,7 @@ from elevens.eval.cli_eval import (
     ViewArgs,
     run_eval_command,
 )
+from elevens.train.cli_train import TrainArgs, TrainBenchArgs, bench_train_command, train_command
 
 TEAM_NAMES = ("random", "naive", "teamwork")
 
@@ -97,6 +98,8 @@ def bench_env(args: EnvBenchArgs) -> None:
 Command = (
     Annotated[PlayArgs, tyro.conf.subcommand("play")]
     | Annotated[EnvBenchArgs, tyro.conf.subcommand("bench-env")]
+    | Annotated[TrainArgs, tyro.conf.subcommand("train")]
+    | Annotated[TrainBenchArgs, tyro.conf.subcommand("bench-train")]
     | Annotated[TournamentArgs, tyro.conf.subcommand("tournament")]
     | Annotated[AnalyzeArgs, tyro.conf.subcommand("analyze")]
     | Annotated[CurvesArgs, tyro.conf.subcommand("curves")]
@@ -116,6 +119,10 @@ def main(argv: list[str] | None = None) -> None:
         play(args)
     elif isinstance(args, EnvBenchArgs):
         bench_env(args)
+    elif isinstance(args, TrainArgs):
+        train_command(args)
+    elif isinstance(args, TrainBenchArgs):
+        bench_train_command(args)
     elif isinstance(args, TournamentArgs | AnalyzeArgs | CurvesArgs | RenderArgs | ViewArgs):
         run_eval_command(args)
 

@@ -1,0 +1,173 @@
+"""`elevens bench train`: training env steps per second, and where the time goes.
+
+For each team size the thesis network (table 6.2) trains with table 6.1's PPO numbers (5 epochs,
+minibatches of about 60 player sequences in whole games, 55 for 11 a side; a batch of 660
+sequences: 660 / n games). One "env step" is
+one step of one game with all 2n players acting, as in `elevens bench env`; the figure is env
+steps of one whole iteration (both teams' rollout, the critic, advantages, the 5 epochs and the
+opponent update) divided by the iteration's wall time, the median over repeats. Compilation is
+timed separately (the first call).
+
+Where the time goes is measured on the same data with separately compiled functions:
+
+* env: the rollout's env alone (observe + transition, random actions; ``bench.env``'s runner);
+* forward: the rollout with both teams' networks (``Trainer.collect``) minus the env;
+* update: advantages and the PPO epochs alone (``Trainer.learn``) on a recorded rollout.
+
+Shares are those times over the full iteration's; they need not sum to exactly 1 (the full
+iteration fuses the parts, and the opponent and shaping updates are not in any part).
+"""
+
+from __future__ import annotations
+
+import json as json_lib
+import statistics
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import jax
+
+from elevens.bench.env import make_scan_runner
+from elevens.train.config import make_config
+
+
+@dataclass(frozen=True)
+class TrainBenchResult:
+    players: int
+    """Players per team."""
+    games: int
+    """Games per iteration (660 / players: table 6.1's batch of 660 sequences)."""
+    episode_length: int
+    """Steps per episode (= per iteration and game)."""
+    epochs: int
+    minibatch_size: int
+    steps_per_s: float
+    """Env steps of a full training iteration per second (median over repeats)."""
+    iteration_s: float
+    """Median wall time of one iteration."""
+    env_s: float
+    """Median time of the env alone over the same games and steps (random actions)."""
+    rollout_s: float
+    """Median time of the rollout with both teams' networks."""
+    update_s: float
+    """Median time of advantages + PPO epochs alone."""
+    env_share: float
+    forward_share: float
+    update_share: float
+    compile_s: float
+    """First call of the full iteration (trace, compile, one run)."""
+    repeats: int
+    backend: str
+
+
+def _median_time(run: Callable[[], Any], repeats: int) -> tuple[float, float]:
+    """(first call's seconds, median seconds of ``repeats`` later calls)."""
+    start = time.perf_counter()
+    jax.block_until_ready(run())
+    first = time.perf_counter() - start
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        jax.block_until_ready(run())
+        times.append(time.perf_counter() - start)
+    return first, statistics.median(times)
+
+
+def bench_train(
+    players: int, episode_length: int = 100, repeats: int = 3, games: int | None = None
+) -> TrainBenchResult:
+    """Time one training iteration of ``players`` a side and its parts (see the module doc)."""
+    from elevens.train.trainer import make_trainer
+
+    games = max(1, 660 // players) if games is None else games
+    units = games * players
+    # Table 6.1's 60 sequences, rounded to whole games that divide the batch (55 for 11 a side).
+    fits = [m for m in range(players, units + 1, players) if units % m == 0]
+    minibatch = min(fits, key=lambda m: abs(m - 60))
+    config = make_config(
+        "11v11" if players == 11 else "2v2",
+        **{
+            "env.scenario": f"{players}v{players}",
+            "env.episode_length": episode_length,
+            "run.games_per_iteration": games,
+            "run.iterations_per_chunk": 1,
+            "ppo.batch_size": units,
+            "ppo.minibatch_size": minibatch,
+        },
+    )
+    trainer = make_trainer(config)
+    state = trainer.init(jax.random.key(0))
+
+    def full() -> Any:
+        nonlocal state
+        state, metrics = trainer.update_chunk(state)
+        return metrics
+
+    compile_s, iteration_s = _median_time(full, repeats)
+
+    collect = jax.jit(trainer.collect)
+    learn = jax.jit(trainer.learn)
+    rollout_key, shuffle_key = jax.random.split(jax.random.key(1))
+    _, rollout_s = _median_time(lambda: collect(state, rollout_key), repeats)
+    data = collect(state, rollout_key)
+    _, update_s = _median_time(
+        lambda: learn(state.params, state.opt_state, data, shuffle_key), repeats
+    )
+
+    env, params = trainer.env, trainer.env_params
+    runner = make_scan_runner(env, params, games, episode_length)
+    states, _ = jax.vmap(env.reset, in_axes=(0, None))(
+        jax.random.split(jax.random.key(2), games), params
+    )
+    _, env_s = _median_time(lambda: runner(states, jax.random.key(3)), repeats)
+
+    return TrainBenchResult(
+        players=players,
+        games=games,
+        episode_length=episode_length,
+        epochs=config.ppo.epochs,
+        minibatch_size=minibatch,
+        steps_per_s=games * episode_length / iteration_s,
+        iteration_s=iteration_s,
+        env_s=env_s,
+        rollout_s=rollout_s,
+        update_s=update_s,
+        env_share=env_s / iteration_s,
+        forward_share=max(rollout_s - env_s, 0.0) / iteration_s,
+        update_share=update_s / iteration_s,
+        compile_s=compile_s,
+        repeats=repeats,
+        backend=jax.default_backend(),
+    )
+
+
+def run_train_bench(
+    players: Sequence[int] = (2, 11),
+    json: bool = False,
+    episode_length: int = 100,
+    repeats: int = 3,
+    print_fn: Callable[[str], None] = print,
+) -> list[TrainBenchResult]:
+    """Bench each team size; print a line (or, with ``json``, one JSON object) per size.
+
+    The JSON objects hold ``players``, ``steps_per_s``, ``env_share``, ``forward_share`` and
+    ``update_share``, with the other fields of ``TrainBenchResult``.
+    """
+    results = []
+    for n in players:
+        result = bench_train(n, episode_length=episode_length, repeats=repeats)
+        results.append(result)
+        if json:
+            print_fn(json_lib.dumps(asdict(result)))
+        else:
+            print_fn(
+                f"{n:>2}v{n:<2} train: {result.steps_per_s:>9,.0f} env steps/s "
+                f"({result.games} games x {result.episode_length} steps in "
+                f"{result.iteration_s:.2f} s, {result.epochs} epochs; compile "
+                f"{result.compile_s:.1f} s) | env {result.env_share:.1%}, forward "
+                f"{result.forward_share:.1%}, update {result.update_share:.1%}"
+            )
+    return results
+

@@ -1,0 +1,102 @@
+"""The `elevens train` and `elevens bench train` subcommands (wired into ``elevens.cli``).
+
+``elevens train [--resume] [--no-progress] PRESET [--group.field VALUE ...]``: the preset is a
+tyro subcommand whose defaults are that preset's ``TrainConfig``, and every field of the config
+is a flag, e.g.::
+
+    elevens train quickstart
+    elevens train 2v2 --ppo.learning-rate 3e-4 --run.run-dir runs/a
+    elevens train --resume 2v2 --run.run-dir runs/a --run.iterations 8000
+
+Heavy imports (JAX, the trainer) happen inside the commands, so ``elevens --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import TYPE_CHECKING, Annotated, Any, Union
+
+import tyro
+
+from elevens.train.config import PRESETS, TrainConfig, make_config
+
+_PRESET_HELP = {
+    "quickstart": "1 v 1 on a small field, 100-step episodes: learns to beat the random team "
+    "within minutes on a laptop CPU.",
+    "2v2": "The thesis' 4-player setting: random spawns, 400-step episodes, table 6.1.",
+    "11v11": "The full game against a Polyak-averaged opponent, table 6.1.",
+}
+
+if TYPE_CHECKING:
+    PresetConfig = TrainConfig
+else:
+    # One tyro subcommand per preset, whose defaults are that preset's config.
+    PresetConfig = Union[  # noqa: UP007 - a runtime Union built from a generator
+        tuple(
+            Annotated[
+                TrainConfig,
+                tyro.conf.subcommand(
+                    name, default=make_config(name), description=_PRESET_HELP[name],
+                    prefix_name=False,
+                ),
+            ]
+            for name in PRESETS
+        )
+    ]
+
+
+@dataclasses.dataclass(frozen=True)
+class TrainArgs:
+    """Train a team with PPO (thesis Algorithm 4): a preset, then any config field as a flag."""
+
+    config: Annotated[PresetConfig, tyro.conf.arg(name="")] = make_config("quickstart")
+    """The run: a preset, with its fields overridden by flags."""
+    resume: bool = False
+    """Continue from the latest checkpoint in run.run_dir (its config must match)."""
+    progress: bool = True
+    """Show the progress bar (plain lines when not on a terminal)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class TrainBenchArgs:
+    """Training env steps per second with the thesis network, and where the time goes."""
+
+    players: tuple[int, ...] = (2, 11)
+    """Players per team to measure."""
+    json: bool = False
+    """Print one JSON object per team size instead of a line of text."""
+    episode_length: int = 100
+    """Steps per episode (costs scale linearly with it; the rate barely depends on it)."""
+    repeats: int = 3
+    """Timed repeats; the median is reported."""
+
+
+def train_command(args: TrainArgs) -> Any:
+    """Validate (before anything compiles), train, and print a summary. Returns TrainResult."""
+    from elevens.train.trainer import train
+
+    config = args.config.validate()
+    result = train(config, resume=args.resume, progress=args.progress)
+    state = "interrupted (Ctrl-C)" if result.interrupted else "done"
+    print(
+        f"{state}: {result.iteration} iterations, {result.env_steps:,} env steps in "
+        f"{result.wall_s / 60:.1f} min"
+    )
+    outcomes = {k: v for k, v in result.evaluation.items() if k.endswith("/outcome")}
+    for name, value in outcomes.items():
+        print(f"  {name}: {value:.3f}")
+    if result.checkpoint is not None:
+        print(f"  checkpoint: {result.checkpoint}")
+    for name, path in result.files.items():
+        print(f"  {name}: {path}")
+    return result
+
+
+def bench_train_command(args: TrainBenchArgs) -> Any:
+    """Run the training benchmark."""
+    from elevens.bench.train import run_train_bench
+
+    return run_train_bench(
+        players=args.players, json=args.json, episode_length=args.episode_length,
+        repeats=args.repeats,
+    )

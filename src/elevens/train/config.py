@@ -1,0 +1,691 @@
+"""TrainConfig: every knob of a training run, as frozen, typed, documented dataclasses.
+
+A config is built from a named preset plus overrides (``make_config("2v2", **{"ppo.epochs": 3})``),
+checked by ``validate`` before anything compiles, and saved as JSON beside every checkpoint
+(``to_dict`` / ``from_dict``; nothing is pickled). The comment under each field says where its
+default comes from: the thesis (seeds/000: Algorithm 4, section 4.2, section 5.2, tables 6.1 and
+6.2), SPEC.md (the game's defaults, which are ``EnvParams``'s), or our own choice and why.
+
+Units of the learner (see ``elevens.train.rollout``): one iteration plays ``games_per_iteration``
+whole episodes; in each of them the learning team's ``n`` players each give one sequence of
+``episode_length`` steps. ``ppo.batch_size`` counts those ``games_per_iteration * n`` player
+sequences (table 6.1's 660 is 330 games of 2 players, or 60 games of 11), and must equal that
+number. ``ppo.minibatch_size`` counts sequences too; a minibatch holds whole games (the critic,
+whose input is the same for a game's n players, then runs once per game instead of n times), so
+it must be a multiple of n that divides the batch: table 6.1's 60 for 1 or 2 players a side, 55
+(5 games, 12 minibatches) for 11.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import re
+import typing
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, Literal
+
+from elevens.env.params import (
+    BALL_SPAWN_MODES,
+    MAX_PLAYERS_PER_TEAM,
+    SPAWN_MODES,
+    EnvParams,
+)
+from elevens.train.opponents import (
+    LEAGUE_EVERY,
+    LEAGUE_MIN_GAMES,
+    LEAGUE_PSI,
+    LEAGUE_WINDOW,
+    POLYAK_TAU,
+    POLYAK_THRESHOLD,
+)
+from elevens.train.ppo import PPOHyperparams
+from elevens.train.shaping import SHAPING_THRESHOLD, SHAPING_WINDOW
+
+OpponentKind = Literal["polyak", "self", "league"]
+OPPONENT_KINDS: tuple[str, ...] = ("polyak", "self", "league")
+EVAL_TEAMS: tuple[str, ...] = ("random", "naive", "teamwork")
+"""The handcrafted teams the learner can be evaluated against (``elevens.eval.play``)."""
+_SCENARIO = re.compile(r"^(\d+)v(\d+)$")
+
+
+# --------------------------------------------------------------------------------------------
+# The groups
+# --------------------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class EnvConfig:
+    """The game the learner trains in; numbers not named here keep their SPEC.md defaults."""
+
+    scenario: str = "2v2"
+    """'NvN', N players a side from 1 to 11. Default: the thesis' 4-player setting (section 6.3)."""
+    spawn: str = "random"
+    """'formation' or 'random'. Default: random, as the thesis trained its 4-player team
+    ("we spawn the agents at random positions at the start of each 4 player game", 6.5)."""
+    ball_spawn: str = "random"
+    """'centre' or 'random' (SPEC.md / EnvParams default: random, as in the thesis)."""
+    episode_length: int = 400
+    """Steps per episode (table 6.1: 400). One iteration plays exactly one episode per game."""
+    field_length: float = 100.0
+    """Goal line to goal line, metres (SPEC.md). Smaller fields make tiny learning runs fast."""
+    field_width: float = 70.0
+    """Side line to side line, metres (SPEC.md)."""
+    goal_width: float = 40.0
+    """Goal mouth, metres (SPEC.md: oversized on purpose, thesis fig. 4.1)."""
+    ball_shaping_weight: float = 0.1
+    """w_b of eq. 4.1 while shaping is on (thesis section 4.2: 0.1)."""
+    approach_shaping_weight: float = 0.05
+    """w_a of eq. 4.1 while shaping is on (thesis section 4.2: 0.05)."""
+    shaping_schedule: bool = True
+    """Switch shaping off for good once the learner scores in > shaping_threshold of its recent
+    games (thesis section 4.2). False keeps the shaping weights on for the whole run."""
+    shaping_window: int = SHAPING_WINDOW
+    """Recent games the scoring rate is measured over (shaping.py: 100; the thesis names none)."""
+    shaping_threshold: float = SHAPING_THRESHOLD
+    """Shaping goes off when the scoring rate is above this (section 4.2: "more than 75%")."""
+
+    @property
+    def players_per_team(self) -> int:
+        """n, from the scenario ('2v2' -> 2). Call ``validate`` first for a clear error."""
+        match = _SCENARIO.match(self.scenario)
+        if match is None:
+            raise ValueError(_scenario_error(self.scenario))
+        return int(match.group(1))
+
+    def env_params(self) -> EnvParams:
+        """The EnvParams of this config (shaping weights at their 'on' values)."""
+        return EnvParams(
+            players_per_team=self.players_per_team,
+            spawn=self.spawn,
+            ball_spawn=self.ball_spawn,
+            episode_length=self.episode_length,
+            field_length=self.field_length,
+            field_width=self.field_width,
+            goal_width=self.goal_width,
+            ball_shaping_weight=self.ball_shaping_weight,
+            approach_shaping_weight=self.approach_shaping_weight,
+        )
+
+
+@dataclasses.dataclass(frozen=True)
+class NetworkConfig:
+    """The policy and critic networks (``elevens.nets``); defaults are the thesis network."""
+
+    use_attention: bool = True
+    """Attention over the seen entities (thesis 5.2.10). False: the feedforward ablation (6.4)."""
+    use_lstm: bool = True
+    """out_r is a 2-layer LSTM (table 6.2). False: a feedforward head without memory."""
+    features: int = 64
+    """Width of every feedforward block and of the attention (table 6.1: 64)."""
+    num_heads: int = 4
+    """Attention heads of features / num_heads each (nets default; the thesis gives no number)."""
+    lstm_features: int = 32
+    """LSTM units per layer (table 6.1: 32)."""
+    lstm_layers: int = 2
+    """LSTM layers in out_r (table 6.2: 2)."""
+
+    def policy(self) -> Any:
+        """The ``AttentionPolicy`` module of this config."""
+        from elevens.nets.policy import AttentionPolicy
+
+        return AttentionPolicy(
+            features=self.features,
+            num_heads=self.num_heads,
+            lstm_features=self.lstm_features,
+            lstm_layers=self.lstm_layers,
+            use_attention=self.use_attention,
+            use_lstm=self.use_lstm,
+        )
+
+    def critic(self) -> Any:
+        """The ``AttentionCritic`` module of this config."""
+        from elevens.nets.critic import AttentionCritic
+
+        return AttentionCritic(
+            features=self.features, num_heads=self.num_heads, use_attention=self.use_attention
+        )
+
+
+@dataclasses.dataclass(frozen=True)
+class OpponentConfig:
+    """Who the learning team plays during training (``elevens.train.opponents``)."""
+
+    kind: str = "polyak"
+    """'polyak': Polyak-averaged opponent with freezing (thesis 5.2.6, its best setting);
+    'self': plain self-play against the latest learner (the ablation); 'league': past snapshots
+    sampled by win rate (5.2.7)."""
+    polyak_tau: float = POLYAK_TAU
+    """alpha_s, the Polyak update rate (table 6.1: 0.01). 'polyak' only."""
+    freeze_threshold: float = POLYAK_THRESHOLD
+    """epsilon_s (table 6.1: 0.55): the opponent moves only if the learner's mean outcome in the
+    iteration is above it, else it is frozen (Algorithm 4 line 25). 'polyak' only."""
+    league_capacity: int = 32
+    """Snapshots the league holds; the weakest evaluated one is evicted when full. The thesis
+    names no limit; 32 policies are about 18 MB with the thesis network."""
+    league_every: int = LEAGUE_EVERY
+    """A snapshot of the learner joins every this many iterations (section 5.2.7: 10)."""
+    league_psi: float = LEAGUE_PSI
+    """psi of eq. 5.2, p_i proportional to w_i ** psi (section 5.2.7: 2)."""
+    league_min_games: int = LEAGUE_MIN_GAMES
+    """A snapshot's win rate is held at 0.5 until it has played this many games (5.2.7: 100)."""
+    league_window: int = LEAGUE_WINDOW
+    """Games per snapshot its win rate is averaged over (section 5.2.7: the past 1000)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class RunConfig:
+    """How long to train, and what the host loop does between compiled chunks."""
+
+    iterations: int = 5000
+    """Learner iterations (one iteration = one episode in every game, then the PPO epochs)."""
+    games_per_iteration: int = 330
+    """Games played per iteration, all at once (vmapped). The learner plays side 0 in the first
+    ceil(G / 2) of them and side 1 in the rest. 330 x 2 players = table 6.1's batch of 660."""
+    iterations_per_chunk: int = 5
+    """K: iterations compiled into one call (lax.scan). Larger K means fewer host round trips;
+    logging, evaluation and checkpoints happen only between chunks."""
+    eval_every: int = 25
+    """Evaluate against the handcrafted teams every this many iterations (at the first chunk end
+    past each multiple), and at the end. 0: only at the end."""
+    eval_games: int = 100
+    """Games per handcrafted team per evaluation (half on each side)."""
+    eval_teams: tuple[str, ...] = EVAL_TEAMS
+    """Handcrafted teams to evaluate against (thesis 6.1: random, naive, teamwork)."""
+    eval_deterministic: bool = False
+    """False: the learner samples its actions in evaluation, as it does in training and as the
+    thesis' executors did; True: it plays the mean action tanh(mean)."""
+    checkpoint_every: int = 25
+    """Checkpoint every this many iterations (at the first chunk end past each multiple), at the
+    end, and on Ctrl-C. 0: only at the end and on Ctrl-C."""
+    keep_checkpoints: int = 3
+    """Newest checkpoints kept on disk; older ones are deleted after a successful save."""
+    seed: int = 0
+    """Seed of the run: initial params, every game, every minibatch shuffle."""
+    run_dir: str = "runs/2v2"
+    """Where logs, checkpoints, the learning curve and the GIF go."""
+    write_plot: bool = True
+    """Write ``learning_curve.png`` at the end."""
+    write_gif: bool = True
+    """Write ``learner_vs_naive.gif`` (one game against the naive team) at the end."""
+
+
+@dataclasses.dataclass(frozen=True)
+class TrainConfig:
+    """A whole training run. Build with ``make_config``; check with ``validate``."""
+
+    preset: str = "2v2"
+    """The preset this config started from (informational; the fields below are what count)."""
+    env: EnvConfig = EnvConfig()
+    """The game."""
+    network: NetworkConfig = NetworkConfig()
+    """Policy and critic networks."""
+    ppo: PPOHyperparams = PPOHyperparams()
+    """PPO numbers (elevens.train.ppo: table 6.1 and Algorithm 4)."""
+    opponent: OpponentConfig = OpponentConfig()
+    """The training opponent."""
+    run: RunConfig = RunConfig()
+    """Length, evaluation, checkpoints, seed and run directory."""
+
+    @property
+    def players_per_team(self) -> int:
+        return self.env.players_per_team
+
+    @property
+    def units_per_iteration(self) -> int:
+        """Player sequences per iteration: games_per_iteration * n (the PPO batch)."""
+        return self.run.games_per_iteration * self.players_per_team
+
+    @property
+    def env_steps_per_iteration(self) -> int:
+        """Game steps per iteration (one step of one game, all 2n players acting)."""
+        return self.run.games_per_iteration * self.env.episode_length
+
+    def validate(self) -> TrainConfig:
+        """Raise ``ValueError`` naming the first bad field and its allowed values; else return
+        self. Pure Python: nothing is traced or compiled."""
+        validate(self)
+        return self
+
+    def to_dict(self) -> dict[str, Any]:
+        """A JSON-ready dict (tuples become lists)."""
+        return json.loads(json.dumps(dataclasses.asdict(self)))
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> TrainConfig:
+        """The inverse of ``to_dict``; unknown or missing keys are a ``ValueError``."""
+        return _from_dict(cls, data, "")
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), indent=2) + "\n"
+
+    @classmethod
+    def from_json(cls, text: str) -> TrainConfig:
+        return cls.from_dict(json.loads(text))
+
+
+# --------------------------------------------------------------------------------------------
+# Presets
+# --------------------------------------------------------------------------------------------
+
+
+def _quickstart() -> TrainConfig:
+    # 1 v 1 on a 50 x 35 field (a quarter of the area) with 100-step episodes: a random team
+    # rarely scores there while a learner that runs at the ball and pushes it forward does, so the
+    # eval outcome against random rises from 0.5 to about 0.8 within the first 40 iterations
+    # (a minute on a 2-core CPU). A smaller network (32 wide, one LSTM layer of 16) keeps compile
+    # and update times short; 64 games of 1 player with minibatches of 16 sequences give 4 Adam
+    # steps per epoch, at a learning rate of 1e-3 (10x table 6.1: few, small steps). gamma 0.99
+    # suits 100-step episodes (0.999 barely discounts them). 300 iterations: about 2-3 minutes.
+    return TrainConfig(
+        preset="quickstart",
+        env=EnvConfig(
+            scenario="1v1",
+            spawn="random",
+            ball_spawn="random",
+            episode_length=100,
+            field_length=50.0,
+            field_width=35.0,
+            goal_width=20.0,
+        ),
+        network=NetworkConfig(features=32, num_heads=4, lstm_features=16, lstm_layers=1),
+        ppo=PPOHyperparams(
+            learning_rate=1e-3, batch_size=64, minibatch_size=16, gamma=0.99, epochs=5
+        ),
+        opponent=OpponentConfig(kind="polyak"),
+        run=RunConfig(
+            iterations=300,
+            games_per_iteration=64,
+            iterations_per_chunk=5,
+            eval_every=10,
+            eval_games=64,
+            eval_teams=("random", "naive"),
+            checkpoint_every=20,
+            run_dir="runs/quickstart",
+        ),
+    )
+
+
+def _two_v_two() -> TrainConfig:
+    # Thesis 4-player setting: random spawns, 400-step episodes, table 6.1 numbers. 330 games x 2
+    # players = the batch of 660 sequences in minibatches of 60.
+    return TrainConfig(
+        preset="2v2",
+        env=EnvConfig(scenario="2v2", spawn="random", episode_length=400),
+        run=RunConfig(
+            iterations=5000,
+            games_per_iteration=330,
+            iterations_per_chunk=5,
+            eval_every=25,
+            eval_games=100,
+            checkpoint_every=25,
+            run_dir="runs/2v2",
+        ),
+    )
+
+
+def _eleven_v_eleven() -> TrainConfig:
+    # The full game against a Polyak-averaged opponent (thesis 6.3, its best setting): formation
+    # spawns, 400 steps, table 6.1 numbers. 60 games x 11 players = the batch of 660 sequences,
+    # in minibatches of 5 whole games (55 sequences; 60 is not a multiple of 11, and the thesis
+    # chose 60 only as what fit its 8 GB GPU, section 6.2.2). One iteration is 24,000 game steps
+    # (about two minutes on a 2-core CPU), hence K = 1.
+    return TrainConfig(
+        preset="11v11",
+        env=EnvConfig(scenario="11v11", spawn="formation", episode_length=400),
+        ppo=PPOHyperparams(minibatch_size=55),
+        opponent=OpponentConfig(kind="polyak"),
+        run=RunConfig(
+            iterations=5000,
+            games_per_iteration=60,
+            iterations_per_chunk=1,
+            eval_every=10,
+            eval_games=50,
+            checkpoint_every=10,
+            run_dir="runs/11v11",
+        ),
+    )
+
+
+PRESETS = {"quickstart": _quickstart, "2v2": _two_v_two, "11v11": _eleven_v_eleven}
+"""Named starting points: a few-minute CPU demo, the thesis' 4-player and 22-player settings."""
+
+
+def make_config(preset: str = "quickstart", **overrides: Any) -> TrainConfig:
+    """A validated config: ``preset`` plus overrides named by dotted paths.
+
+    Example: ``make_config("2v2", **{"ppo.learning_rate": 3e-4, "run.iterations": 10})``; the
+    separator may also be a double underscore (``run__iterations=10``) to pass them as keywords.
+    A whole group may be given too (``env=EnvConfig(...)``). Raises ``ValueError`` for an unknown
+    preset (naming the allowed ones), an unknown field (naming the allowed fields), or any value
+    that ``validate`` rejects; nothing is compiled.
+    """
+    if preset not in PRESETS:
+        raise ValueError(
+            f"preset={preset!r} is unknown: allowed presets are {', '.join(PRESETS)}"
+        )
+    config = PRESETS[preset]()
+    return apply_overrides(config, overrides).validate()
+
+
+def apply_overrides(config: TrainConfig, overrides: Mapping[str, Any]) -> TrainConfig:
+    """``config`` with fields replaced by dotted path (see ``make_config``); not validated."""
+    by_group: dict[str, dict[str, Any]] = {}
+    top: dict[str, Any] = {}
+    group_names = [f.name for f in dataclasses.fields(TrainConfig)]
+    for raw_name, value in overrides.items():
+        name = raw_name.replace("__", ".")
+        group, _, field = name.partition(".")
+        if group not in group_names:
+            raise ValueError(
+                f"override {raw_name!r}: unknown config group {group!r}; allowed groups are "
+                f"{', '.join(group_names)}"
+            )
+        if not field:
+            top[group] = value
+            continue
+        group_type = type(getattr(config, group))
+        allowed = [f.name for f in dataclasses.fields(group_type)]
+        if field not in allowed:
+            raise ValueError(
+                f"override {raw_name!r}: {group} has no field {field!r}; allowed fields are "
+                f"{', '.join(allowed)}"
+            )
+        by_group.setdefault(group, {})[field] = value
+    if top:
+        config = dataclasses.replace(config, **top)
+    changes: dict[str, Any] = {}
+    for group, fields in by_group.items():
+        if group == "ppo":
+            changes[group] = _replace_ppo(config.ppo, fields)
+        else:
+            changes[group] = dataclasses.replace(getattr(config, group), **fields)
+    return dataclasses.replace(config, **changes)
+
+
+def _replace_ppo(ppo: PPOHyperparams, fields: Mapping[str, Any]) -> PPOHyperparams:
+    """PPOHyperparams validates itself on construction; check the cases it words less clearly
+    first, and prefix its own errors with the group name."""
+    merged = {**dataclasses.asdict(ppo), **fields}
+    _check_ppo_extras(merged)
+    try:
+        return PPOHyperparams(**merged)
+    except ValueError as error:
+        raise ValueError(f"ppo: {error}") from None
+
+
+# --------------------------------------------------------------------------------------------
+# Validation (pure Python, before anything compiles)
+# --------------------------------------------------------------------------------------------
+
+
+def _scenario_error(scenario: object) -> str:
+    return (
+        f"env.scenario={scenario!r} is invalid: use 'NvN' with N from 1 to "
+        f"{MAX_PLAYERS_PER_TEAM}, e.g. '1v1', '2v2' or '11v11'"
+    )
+
+
+def _is_int(value: object) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _is_number(value: object) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def _require(condition: bool, message: str) -> None:
+    if not condition:
+        raise ValueError(message)
+
+
+def _int_at_least(path: str, value: object, minimum: int) -> None:
+    _require(
+        _is_int(value) and value >= minimum,  # type: ignore[operator]
+        f"{path}={value!r} is invalid: it must be an integer >= {minimum}",
+    )
+
+
+def _positive(path: str, value: object) -> None:
+    _require(
+        _is_number(value) and math.isfinite(value) and value > 0,  # type: ignore[arg-type,operator]
+        f"{path}={value!r} is invalid: it must be a finite number > 0",
+    )
+
+
+def _in_unit_interval(path: str, value: object) -> None:
+    _require(
+        _is_number(value) and 0.0 <= value <= 1.0,  # type: ignore[operator]
+        f"{path}={value!r} is invalid: it must be a number in [0, 1]",
+    )
+
+
+def _check_ppo_extras(fields: Mapping[str, Any]) -> None:
+    """What PPOHyperparams does not check, or words as a divisibility problem."""
+    lr = fields["learning_rate"]
+    _require(
+        _is_number(lr) and math.isfinite(lr) and lr > 0,
+        f"ppo.learning_rate={lr!r} is invalid: it must be a finite number > 0",
+    )
+    for name in ("batch_size", "minibatch_size", "epochs"):
+        _int_at_least(f"ppo.{name}", fields[name], 1)
+    if fields["minibatch_size"] > fields["batch_size"]:
+        raise ValueError(
+            f"ppo.minibatch_size={fields['minibatch_size']} is invalid: it is larger than "
+            f"ppo.batch_size={fields['batch_size']}; it must divide the batch"
+        )
+    for name in ("policy_weight", "value_weight", "entropy_weight"):
+        value = fields[name]
+        _require(
+            _is_number(value) and math.isfinite(value) and value >= 0,
+            f"ppo.{name}={value!r} is invalid: it must be a finite number >= 0",
+        )
+
+
+def validate(config: TrainConfig) -> None:
+    """Check every field of ``config``; raise ``ValueError`` naming the first bad one."""
+    _require(isinstance(config, TrainConfig), f"expected a TrainConfig, got {type(config)}")
+    _validate_env(config.env)
+    _validate_network(config.network, config.env.players_per_team)
+    _validate_ppo(config)
+    _validate_opponent(config.opponent)
+    _validate_run(config.run)
+
+
+def _validate_env(env: EnvConfig) -> None:
+    match = _SCENARIO.match(env.scenario) if isinstance(env.scenario, str) else None
+    _require(
+        match is not None
+        and match.group(1) == match.group(2)
+        and 1 <= int(match.group(1)) <= MAX_PLAYERS_PER_TEAM,
+        _scenario_error(env.scenario),
+    )
+    _require(
+        env.spawn in SPAWN_MODES,
+        f"env.spawn={env.spawn!r} is invalid: allowed values are {SPAWN_MODES}",
+    )
+    _require(
+        env.ball_spawn in BALL_SPAWN_MODES,
+        f"env.ball_spawn={env.ball_spawn!r} is invalid: allowed values are {BALL_SPAWN_MODES}",
+    )
+    _int_at_least("env.episode_length", env.episode_length, 1)
+    for name in ("field_length", "field_width", "goal_width"):
+        _positive(f"env.{name}", getattr(env, name))
+    _require(
+        env.goal_width <= env.field_width,
+        f"env.goal_width={env.goal_width!r} is invalid: it must not exceed "
+        f"env.field_width={env.field_width!r}",
+    )
+    for name in ("ball_shaping_weight", "approach_shaping_weight"):
+        value = getattr(env, name)
+        _require(
+            _is_number(value) and math.isfinite(value) and value >= 0,
+            f"env.{name}={value!r} is invalid: it must be a finite number >= 0",
+        )
+    _require(
+        isinstance(env.shaping_schedule, bool),
+        f"env.shaping_schedule={env.shaping_schedule!r} is invalid: it must be True or False",
+    )
+    _int_at_least("env.shaping_window", env.shaping_window, 1)
+    _in_unit_interval("env.shaping_threshold", env.shaping_threshold)
+
+
+def _validate_network(network: NetworkConfig, players_per_team: int) -> None:
+    for name in ("features", "num_heads", "lstm_features", "lstm_layers"):
+        _int_at_least(f"network.{name}", getattr(network, name), 1)
+    _require(
+        network.features % network.num_heads == 0,
+        f"network.num_heads={network.num_heads} is invalid: it must divide "
+        f"network.features={network.features}",
+    )
+    for name in ("use_attention", "use_lstm"):
+        value = getattr(network, name)
+        _require(
+            isinstance(value, bool),
+            f"network.{name}={value!r} is invalid: it must be True or False",
+        )
+
+
+def _validate_ppo(config: TrainConfig) -> None:
+    ppo = config.ppo
+    _require(
+        isinstance(ppo, PPOHyperparams), f"ppo must be a PPOHyperparams, got {type(ppo).__name__}"
+    )
+    _check_ppo_extras(dataclasses.asdict(ppo))
+    units = config.units_per_iteration
+    n = config.players_per_team
+    _require(
+        ppo.batch_size == units,
+        f"ppo.batch_size={ppo.batch_size} is invalid: the batch is the learner's player "
+        f"sequences per iteration, run.games_per_iteration * players_per_team = "
+        f"{config.run.games_per_iteration} * {n} = {units}; set ppo.batch_size={units} (or "
+        f"run.games_per_iteration={ppo.batch_size // n if ppo.batch_size % n == 0 else '?'})",
+    )
+    _require(
+        units % ppo.minibatch_size == 0,
+        f"ppo.minibatch_size={ppo.minibatch_size} is invalid: it must divide the batch of "
+        f"{units} player sequences",
+    )
+    if ppo.minibatch_size % n != 0:
+        fits = [m for m in range(n, units + 1, n) if units % m == 0]
+        near = sorted(fits, key=lambda m: abs(m - ppo.minibatch_size))[:3]
+        raise ValueError(
+            f"ppo.minibatch_size={ppo.minibatch_size} is invalid for {n} players a side: "
+            "minibatches hold whole games (the critic runs once per game), so it must be a "
+            f"multiple of {n} that divides the batch of {units}, e.g. "
+            f"{', '.join(str(m) for m in sorted(near))}"
+        )
+
+
+def _validate_opponent(opponent: OpponentConfig) -> None:
+    _require(
+        opponent.kind in OPPONENT_KINDS,
+        f"opponent.kind={opponent.kind!r} is invalid: allowed values are "
+        f"{', '.join(repr(k) for k in OPPONENT_KINDS)}",
+    )
+    _require(
+        _is_number(opponent.polyak_tau) and 0.0 < opponent.polyak_tau <= 1.0,
+        f"opponent.polyak_tau={opponent.polyak_tau!r} is invalid: it must be in (0, 1]",
+    )
+    _in_unit_interval("opponent.freeze_threshold", opponent.freeze_threshold)
+    _int_at_least("opponent.league_capacity", opponent.league_capacity, 1)
+    _int_at_least("opponent.league_every", opponent.league_every, 1)
+    _require(
+        _is_number(opponent.league_psi) and opponent.league_psi >= 0,
+        f"opponent.league_psi={opponent.league_psi!r} is invalid: it must be a number >= 0",
+    )
+    _int_at_least("opponent.league_min_games", opponent.league_min_games, 0)
+    _int_at_least("opponent.league_window", opponent.league_window, 1)
+
+
+def _validate_run(run: RunConfig) -> None:
+    _int_at_least("run.iterations", run.iterations, 1)
+    _int_at_least("run.games_per_iteration", run.games_per_iteration, 1)
+    _int_at_least("run.iterations_per_chunk", run.iterations_per_chunk, 1)
+    _int_at_least("run.eval_every", run.eval_every, 0)
+    _int_at_least("run.eval_games", run.eval_games, 1)
+    _int_at_least("run.checkpoint_every", run.checkpoint_every, 0)
+    _int_at_least("run.keep_checkpoints", run.keep_checkpoints, 1)
+    _require(_is_int(run.seed), f"run.seed={run.seed!r} is invalid: it must be an integer")
+    unknown = [team for team in run.eval_teams if team not in EVAL_TEAMS]
+    _require(
+        isinstance(run.eval_teams, tuple) and not unknown,
+        f"run.eval_teams={run.eval_teams!r} is invalid: allowed teams are "
+        f"{', '.join(EVAL_TEAMS)}",
+    )
+    _require(
+        isinstance(run.run_dir, str) and run.run_dir != "",
+        f"run.run_dir={run.run_dir!r} is invalid: it must be a non-empty path",
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# JSON
+# --------------------------------------------------------------------------------------------
+
+
+def _from_dict(cls: type, data: Mapping[str, Any], where: str) -> Any:
+    if not isinstance(data, Mapping):
+        raise ValueError(f"config{where}: expected an object, got {type(data).__name__}")
+    hints = typing.get_type_hints(cls)
+    names = [f.name for f in dataclasses.fields(cls)]
+    unknown = sorted(set(data) - set(names))
+    missing = [name for name in names if name not in data]
+    if unknown or missing:
+        raise ValueError(
+            f"config{where or ' (top level)'}: unknown keys {unknown or 'none'}, missing keys "
+            f"{missing or 'none'}; expected keys {', '.join(names)}"
+        )
+    values = {}
+    for name in names:
+        hint, value = hints[name], data[name]
+        if dataclasses.is_dataclass(hint):
+            values[name] = _from_dict(typing.cast(type, hint), value, f"{where}.{name}")
+        elif typing.get_origin(hint) is tuple and isinstance(value, list):
+            values[name] = tuple(value)
+        elif hint is float and _is_int(value):
+            values[name] = float(value)
+        else:
+            values[name] = value
+    return cls(**values)
+
+
+def load_config(path: str | Path) -> TrainConfig:
+    """A TrainConfig from a JSON file (e.g. a checkpoint's ``config.json``)."""
+    return TrainConfig.from_json(Path(path).read_text(encoding="utf-8"))
+
+
+RESUMABLE_FIELDS: tuple[str, ...] = (
+    "preset",
+    "run.iterations",
+    "run.iterations_per_chunk",
+    "run.eval_every",
+    "run.eval_games",
+    "run.eval_teams",
+    "run.eval_deterministic",
+    "run.checkpoint_every",
+    "run.keep_checkpoints",
+    "run.run_dir",
+    "run.write_plot",
+    "run.write_gif",
+)
+"""Fields a resumed run may change: they steer the host loop, not what is computed. Everything
+else must equal the checkpoint's config (a run cannot silently continue as another run)."""
+
+
+def config_differences(saved: TrainConfig, current: TrainConfig) -> list[str]:
+    """'path: saved -> current' for every differing field outside ``RESUMABLE_FIELDS``."""
+    differences = []
+
+    def walk(a: Any, b: Any, path: str) -> None:
+        if dataclasses.is_dataclass(a) and dataclasses.is_dataclass(b):
+            for field in dataclasses.fields(a):
+                name = f"{path}.{field.name}" if path else field.name
+                walk(getattr(a, field.name), getattr(b, field.name), name)
+        elif a != b and path not in RESUMABLE_FIELDS:
+            differences.append(f"{path}: {a!r} -> {b!r}")
+
+    walk(saved, current, "")
+    return differences

@@ -1,0 +1,261 @@
+"""One iteration's experience: G games played at once for one whole episode of T steps.
+
+Layout (Algorithm 4 lines 4-11). ``lax.scan`` runs over the T steps; every step is batched over
+the G games (vmapped env functions) and each team's policy runs as ONE batched forward pass over
+all its ``[G, n]`` players (thesis 5.2.9). The learning team plays side 0 in the first ceil(G / 2)
+games and side 1 in the rest, so it learns both sides; the opponent plays the other side. Sides
+are picked with ``jnp.where`` (a select, not a gather), so one program serves both.
+
+The scan body observes the state it carries and steps with ``env.transition`` (not ``env.step``):
+XLA then materialises the state once instead of fusing the physics into every observation element
+(PERFORMANCE_NOTES.md).
+
+The opponent's params are either one tree shared by every game (Polyak, self-play) or a tree with
+a leading ``[G]`` axis, one snapshot per game (league: ``league_params(state, indices)``); the
+opponent's forward pass is then vmapped over games.
+
+The output keeps the memory layout the update wants: ``[U, T, ...]`` with ``U = G * n`` player
+sequences, games outermost (unit ``g * n + k`` is player ``k`` of game ``g``).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import struct
+
+from elevens.env.params import EnvParams
+from elevens.env.soccer import Soccer
+from elevens.env.state import GlobalState, Observation, State
+from elevens.nets.policy import AttentionPolicy, PolicyCarry
+
+Params = Any
+
+
+@struct.dataclass
+class Transition:
+    """The learning team's experience. U = G * n player sequences (game-major), T steps.
+
+    Entry ``t`` holds what a player saw at step ``t``, what it did there and the reward that
+    action earned (``rewards[t]`` is for the action at ``t``; ``done[t]`` is True at an episode's
+    last step), the conventions of ``elevens.train.ppo``.
+    """
+
+    obs: Observation  # leading [U, T]: self_features f32[U, T, 15], entities f32[U, T, 2n, 11],
+    #                   entity_mask bool[U, T, 2n]; the player's own team view
+    global_state: GlobalState  # leading [U, T]: context f32[U, T, 5], players f32[U, T, 2n, 11];
+    #                            the learning team's view, the same for the n players of a game
+    #                            (the trainer reads Rollout.game_global_state, once per game; in
+    #                            its compiled iteration XLA drops this unused copy)
+    pre_tanh: jax.Array  # f32[U, T, 2] the Gaussian samples u; the actions are tanh(u)
+    log_prob: jax.Array  # f32[U, T] log pi(tanh(u)) under the rollout params (exact, from u)
+    reward: jax.Array  # f32[U, T] goal reward plus the shaping in force this iteration
+    done: jax.Array  # bool[U, T] True at the last step of an episode
+    truncated: jax.Array  # bool[U, T] True where that end is the time limit (every end here)
+    reset: jax.Array  # bool[U, T] True at the first step of an episode: the LSTM memory is zeroed
+    initial_carry: PolicyCarry  # leaves f32[U, lstm_features]: the memory before step 0
+
+
+@struct.dataclass
+class Rollout:
+    """``Transition`` plus per-game facts, from the learning team's view. G games."""
+
+    transitions: Transition
+    learner_side: jax.Array  # i32[G] the side (0 or 1) the learner played
+    goals_for: jax.Array  # i32[G] the learner's goals
+    goals_against: jax.Array  # i32[G] the opponent's goals
+    game_global_state: GlobalState  # leading [G, T]: the learner's critic input, once per game
+    goal_reward: jax.Array  # f32[G] sum over steps of the learner's goal term g (per player)
+    ball_shaping: jax.Array  # f32[G] sum over steps of w_b * b (per player)
+    approach_shaping: jax.Array  # f32[G] sum over steps of w_a * a, mean over the n players
+
+
+class RolloutCarry(struct.PyTreeNode):
+    """What the step scan carries: the games and both teams' memories."""
+
+    state: State  # leading [G]
+    learner_carry: PolicyCarry  # leaves f32[G, n, lstm_features]
+    opponent_carry: PolicyCarry  # leaves f32[G, n, lstm_features]
+
+
+class _StepRecord(struct.PyTreeNode):
+    """One step of every game, as the scan stacks it (leading [T, G, ...] after the scan)."""
+
+    obs: Observation  # leading [G, n]
+    global_state: GlobalState  # leading [G]
+    pre_tanh: jax.Array  # f32[G, n, 2]
+    log_prob: jax.Array  # f32[G, n]
+    reward: jax.Array  # f32[G, n]
+    done: jax.Array  # bool[G]
+    truncated: jax.Array  # bool[G]
+    reset: jax.Array  # bool[G]
+    goal_reward: jax.Array  # f32[G, n]
+    ball_shaping: jax.Array  # f32[G, n]
+    approach_shaping: jax.Array  # f32[G, n]
+
+
+def learner_sides(num_games: int) -> np.ndarray:
+    """i32[G]: side 0 for the first ceil(G / 2) games, side 1 for the rest."""
+    sides = np.zeros(num_games, np.int32)
+    sides[(num_games + 1) // 2 :] = 1
+    return sides
+
+
+def _pick_side(tree: Any, side: jax.Array) -> Any:
+    """Leaves ``[G, 2, ...]`` -> ``[G, ...]``: entry ``side[g]`` of axis 1, by select."""
+
+    def pick(leaf: jax.Array) -> jax.Array:
+        chosen = side.reshape(side.shape + (1,) * (leaf.ndim - 2))
+        return jnp.where(chosen == 0, leaf[:, 0], leaf[:, 1])
+
+    return jax.tree.map(pick, tree)
+
+
+def _place_sides(learner: jax.Array, opponent: jax.Array, side: jax.Array) -> jax.Array:
+    """Per-team arrays ``[G, ...]`` -> ``[G, 2, ...]`` by side (the learner's at ``side[g]``)."""
+    chosen = side.reshape(side.shape + (1,) * learner.ndim)
+    first = jnp.stack([learner, opponent], axis=1)
+    second = jnp.stack([opponent, learner], axis=1)
+    return jnp.where(chosen == 0, first, second)
+
+
+def _to_units(leaf: jax.Array, n: int) -> jax.Array:
+    """A scan output ``[T, G, n, ...]`` -> ``[G * n, T, ...]`` (games outermost)."""
+    moved = jnp.moveaxis(leaf, 0, 2)  # [G, n, T, ...]
+    return moved.reshape(moved.shape[0] * n, *moved.shape[2:])
+
+
+def _games_to_units(leaf: jax.Array, n: int) -> jax.Array:
+    """A per-game array ``[G, T, ...]`` -> ``[G * n, T, ...]``, repeated for each player."""
+    return jnp.repeat(leaf, n, axis=0)
+
+
+def rollout(
+    env: Soccer,
+    policy: AttentionPolicy,
+    params: EnvParams,
+    learner_params: Params,
+    opponent_params: Params,
+    key: jax.Array,
+    *,
+    num_games: int,
+    num_steps: int,
+    opponent_per_game: bool = False,
+) -> Rollout:
+    """Play ``num_games`` whole episodes of ``num_steps`` steps, learner against opponent.
+
+    Args:
+        env, policy: the game and the network both teams run (static).
+        params: EnvParams, including the shaping weights in force (pytree leaves: changing them
+            does not recompile).
+        learner_params: the learner's policy variables ``{"params": ...}``.
+        opponent_params: the opponent's policy variables, shared by all games, or with a leading
+            ``[G]`` axis on every leaf when ``opponent_per_game`` (one league snapshot per game).
+        key: a ``jax.random.key``.
+        num_games: G (static).
+        num_steps: T (static), the episode length: ``params.episode_length`` is a pytree leaf,
+            so it cannot size the scan; pass the same number.
+        opponent_per_game: whether ``opponent_params`` has the per-game axis (static).
+
+    Both teams sample their actions from their tanh Gaussians. Jit this (or call it inside a jit)
+    with ``env``, ``policy``, ``num_games`` and ``opponent_per_game`` static.
+    """
+    n = env.players_per_team
+    steps = num_steps
+    side = jnp.asarray(learner_sides(num_games))
+    reset_key, play_key = jax.random.split(key)
+    states, _ = jax.vmap(env.reset, in_axes=(0, None))(
+        jax.random.split(reset_key, num_games), params
+    )
+    observe = jax.vmap(env.observe, in_axes=(0, None))
+    global_state = jax.vmap(env.global_state, in_axes=(0, None))
+    transition = jax.vmap(env.transition, in_axes=(0, 0, 0, None))
+
+    def learner_forward(carry: PolicyCarry, obs: Observation, reset: jax.Array) -> Any:
+        return policy.apply(learner_params, carry, obs, reset)
+
+    def opponent_forward(carry: PolicyCarry, obs: Observation, reset: jax.Array) -> Any:
+        if opponent_per_game:
+            return jax.vmap(policy.apply)(opponent_params, carry, obs, reset)
+        return policy.apply(opponent_params, carry, obs, reset)
+
+    initial_carry = policy.initial_carry((num_games, n))
+    start = RolloutCarry(
+        state=states, learner_carry=initial_carry, opponent_carry=initial_carry
+    )
+
+    def step(carry: RolloutCarry, step_keys: jax.Array) -> tuple[RolloutCarry, _StepRecord]:
+        learner_key, opponent_key, env_keys = step_keys[0], step_keys[1], step_keys[2:]
+        # Observe the carried state (materialised), see the module docstring.
+        obs = observe(carry.state, params)  # leading [G, 2, n]
+        learner_obs = _pick_side(obs, side)  # leading [G, n]
+        opponent_obs = _pick_side(obs, 1 - side)
+        game_reset = carry.state.step == 0  # bool[G]: an episode starts here
+        player_reset = jnp.broadcast_to(game_reset[:, None], (num_games, n))
+
+        learner_carry, learner_out = learner_forward(carry.learner_carry, learner_obs, player_reset)
+        learner_sample = learner_out.distribution().sample(learner_key)
+        log_prob = learner_out.distribution().log_prob(learner_sample.pre_tanh)
+        opponent_carry, opponent_out = opponent_forward(
+            carry.opponent_carry, opponent_obs, player_reset
+        )
+        opponent_action = opponent_out.distribution().sample(opponent_key).action
+
+        actions = _place_sides(learner_sample.action, opponent_action, side)  # [G, 2, n, 2]
+        state, rewards, done, info = transition(env_keys, carry.state, actions, params)
+        record = _StepRecord(
+            obs=learner_obs,
+            global_state=_pick_side(global_state(carry.state, params), side),
+            pre_tanh=learner_sample.pre_tanh,
+            log_prob=log_prob,
+            reward=_pick_side(rewards, side),
+            done=done,
+            truncated=info.truncated,
+            reset=game_reset,
+            goal_reward=_pick_side(info.goal_reward, side),
+            ball_shaping=_pick_side(info.ball_shaping, side),
+            approach_shaping=_pick_side(info.approach_shaping, side),
+        )
+        next_carry = RolloutCarry(
+            state=state, learner_carry=learner_carry, opponent_carry=opponent_carry
+        )
+        return next_carry, record
+
+    # All keys of the episode in one draw (each threefry call is a loop of its own on CPU):
+    # per step the learner's, the opponent's, and one per game for the env's respawns.
+    step_keys = jax.random.split(play_key, (steps, 2 + num_games))
+    final, history = jax.lax.scan(step, start, step_keys)
+
+    per_player = lambda leaf: _to_units(leaf, n)  # noqa: E731
+    per_game = lambda leaf: jnp.moveaxis(leaf, 0, 1)  # [T, G, ...] -> [G, T, ...]  # noqa: E731
+    game_state = jax.tree.map(per_game, history.global_state)
+    game_flags = lambda leaf: _games_to_units(per_game(leaf), n)  # noqa: E731
+    transitions = Transition(
+        obs=jax.tree.map(per_player, history.obs),
+        global_state=jax.tree.map(lambda leaf: _games_to_units(leaf, n), game_state),
+        pre_tanh=per_player(history.pre_tanh),
+        log_prob=per_player(history.log_prob),
+        reward=per_player(history.reward),
+        done=game_flags(history.done),
+        truncated=game_flags(history.truncated),
+        reset=game_flags(history.reset),
+        initial_carry=jax.tree.map(
+            lambda leaf: leaf.reshape(num_games * n, *leaf.shape[2:]), initial_carry
+        ),
+    )
+    score = final.state.score  # i32[G, 2] by side
+    goals_for = jnp.where(side == 0, score[:, 0], score[:, 1])
+    goals_against = jnp.where(side == 0, score[:, 1], score[:, 0])
+    return Rollout(
+        transitions=transitions,
+        learner_side=side,
+        goals_for=goals_for,
+        goals_against=goals_against,
+        game_global_state=game_state,
+        goal_reward=jnp.sum(history.goal_reward[:, :, 0], axis=0),
+        ball_shaping=jnp.sum(history.ball_shaping[:, :, 0], axis=0),
+        approach_shaping=jnp.mean(jnp.sum(history.approach_shaping, axis=0), axis=-1),
+    )

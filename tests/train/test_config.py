@@ -1,0 +1,216 @@
+"""TrainConfig: presets, dotted overrides, validation errors before anything compiles, JSON."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import time
+
+import pytest
+
+from elevens.train.config import (
+    OPPONENT_KINDS,
+    PRESETS,
+    EnvConfig,
+    TrainConfig,
+    config_differences,
+    load_config,
+    make_config,
+    validate,
+)
+from elevens.train.ppo import PPOHyperparams
+
+
+@pytest.mark.parametrize("preset", sorted(PRESETS))
+def test_presets_are_valid_and_consistent(preset: str) -> None:
+    config = make_config(preset)
+    assert config.preset == preset
+    assert config.ppo.batch_size == config.run.games_per_iteration * config.players_per_team
+    assert config.units_per_iteration % config.ppo.minibatch_size == 0
+
+
+def test_thesis_presets_use_table_6_1() -> None:
+    for preset in ("2v2", "11v11"):
+        config = make_config(preset)
+        assert isinstance(config.ppo, PPOHyperparams)  # the ppo.py class, not a copy
+        assert config.ppo.batch_size == 660 and config.ppo.learning_rate == 1e-4
+        assert config.ppo.epochs == 5 and config.ppo.clip_epsilon == 0.1
+        assert config.env.episode_length == 400
+        assert config.network.features == 64 and config.network.lstm_features == 32
+    assert make_config("2v2").ppo == PPOHyperparams()  # table 6.1 exactly
+    # 11 a side: whole games in a minibatch, 5 games = 55 sequences (12 minibatches).
+    assert make_config("11v11").ppo == PPOHyperparams(minibatch_size=55)
+    assert make_config("2v2").env.spawn == "random"
+    assert make_config("11v11").opponent.kind == "polyak"
+    assert make_config("11v11").players_per_team == 11
+
+
+def test_dotted_and_double_underscore_overrides() -> None:
+    config = make_config(
+        "2v2", **{"ppo.learning_rate": 3e-4, "run.iterations": 7}, opponent__kind="league"
+    )
+    assert config.ppo.learning_rate == 3e-4
+    assert config.run.iterations == 7
+    assert config.opponent.kind == "league"
+    # Untouched fields keep the preset's values.
+    assert config.ppo.epochs == 5 and config.env.scenario == "2v2"
+
+
+def test_whole_group_override() -> None:
+    env = dataclasses.replace(make_config("quickstart").env, episode_length=50)
+    assert make_config("quickstart", env=env).env.episode_length == 50
+
+
+@pytest.mark.parametrize(
+    ("overrides", "words"),
+    [
+        ({"ppo.learning_rate": -1e-4}, ["ppo.learning_rate", "> 0"]),
+        ({"ppo.learning_rate": 0.0}, ["ppo.learning_rate", "> 0"]),
+        ({"ppo.learning_rate": float("nan")}, ["ppo.learning_rate"]),
+        ({"ppo.minibatch_size": 1000}, ["ppo.minibatch_size=1000", "larger", "batch_size"]),
+        ({"ppo.minibatch_size": 7}, ["minibatch_size=7", "divide"]),
+        (
+            {"env.scenario": "2v2", "run.games_per_iteration": 32, "ppo.minibatch_size": 1},
+            ["ppo.minibatch_size=1", "multiple of 2", "whole games", "2, 4"],
+        ),
+        ({"ppo.epochs": 0}, ["ppo.epochs"]),
+        ({"ppo.gamma": 1.5}, ["ppo", "gamma"]),
+        ({"ppo.advantage_estimator": "td"}, ["advantage_estimator", "monte_carlo", "gae"]),
+        ({"opponent.kind": "zoo"}, ["opponent.kind='zoo'", "polyak", "self", "league"]),
+        ({"opponent.polyak_tau": 0.0}, ["opponent.polyak_tau"]),
+        ({"opponent.freeze_threshold": 2.0}, ["opponent.freeze_threshold"]),
+        ({"env.scenario": "2v3"}, ["env.scenario", "NvN"]),
+        ({"env.scenario": "12v12"}, ["env.scenario", "1 to 11"]),
+        ({"env.spawn": "corner"}, ["env.spawn", "formation", "random"]),
+        ({"env.episode_length": 0}, ["env.episode_length", ">= 1"]),
+        ({"env.goal_width": 80.0}, ["env.goal_width", "field_width"]),
+        ({"env.shaping_threshold": -0.1}, ["env.shaping_threshold"]),
+        ({"network.num_heads": 3}, ["network.num_heads", "divide", "features"]),
+        ({"network.features": 0}, ["network.features"]),
+        ({"run.games_per_iteration": 0}, ["run.games_per_iteration"]),
+        ({"run.games_per_iteration": 10}, ["ppo.batch_size", "run.games_per_iteration"]),
+        ({"run.eval_teams": ("random", "robots")}, ["run.eval_teams", "naive", "teamwork"]),
+        ({"run.iterations_per_chunk": 0}, ["run.iterations_per_chunk"]),
+        ({"run.seed": 1.5}, ["run.seed"]),
+    ],
+)
+def test_bad_values_name_the_field(overrides: dict, words: list[str]) -> None:
+    with pytest.raises(ValueError) as error:
+        make_config("quickstart", **overrides)
+    for word in words:
+        assert word in str(error.value), (word, str(error.value))
+
+
+def test_unknown_preset_lists_the_allowed_ones() -> None:
+    with pytest.raises(ValueError, match="preset='3v3' is unknown") as error:
+        make_config("3v3")
+    for name in PRESETS:
+        assert name in str(error.value)
+
+
+def test_unknown_field_or_group_lists_the_allowed_ones() -> None:
+    with pytest.raises(ValueError, match="run has no field 'iters'.*iterations"):
+        make_config("quickstart", **{"run.iters": 3})
+    with pytest.raises(ValueError, match="unknown config group 'optim'.*ppo"):
+        make_config("quickstart", **{"optim.lr": 3})
+
+
+def test_validate_catches_a_config_built_by_hand() -> None:
+    config = make_config("quickstart")
+    bad_ppo = dataclasses.replace(config.ppo, learning_rate=-1.0)  # PPOHyperparams allows it
+    with pytest.raises(ValueError, match="ppo.learning_rate=-1.0"):
+        validate(dataclasses.replace(config, ppo=bad_ppo))
+    bad_env = EnvConfig(scenario="eleven")
+    with pytest.raises(ValueError, match="env.scenario='eleven'"):
+        dataclasses.replace(config, env=bad_env).validate()
+
+
+def test_validation_is_fast_and_compiles_nothing() -> None:
+    # Errors must come before any tracing: a bad config fails in well under a second, and the
+    # trainer factory refuses it before building anything.
+    from elevens.train.trainer import make_trainer
+
+    config = make_config("11v11")
+    bad = dataclasses.replace(config, ppo=dataclasses.replace(config.ppo, learning_rate=-1.0))
+    start = time.perf_counter()
+    with pytest.raises(ValueError, match="learning_rate"):
+        make_trainer(bad)
+    assert time.perf_counter() - start < 0.5
+
+
+def test_every_opponent_kind_is_accepted() -> None:
+    for kind in OPPONENT_KINDS:
+        assert make_config("quickstart", **{"opponent.kind": kind}).opponent.kind == kind
+
+
+@pytest.mark.parametrize("preset", sorted(PRESETS))
+def test_json_round_trip(preset: str, tmp_path) -> None:
+    config = make_config(preset, **{"run.eval_teams": ("naive",), "ppo.entropy_weight": 0})
+    text = config.to_json()
+    json.loads(text)  # plain JSON
+    again = TrainConfig.from_json(text)
+    assert again == config
+    assert isinstance(again.run.eval_teams, tuple)
+    assert isinstance(again.ppo, PPOHyperparams)
+    assert isinstance(again.ppo.entropy_weight, float)  # an int in JSON is still a float field
+    path = tmp_path / "config.json"
+    path.write_text(text)
+    assert load_config(path) == config
+
+
+def test_from_dict_rejects_unknown_and_missing_keys() -> None:
+    data = make_config("quickstart").to_dict()
+    data["run"]["colour"] = "blue"
+    with pytest.raises(ValueError, match=r"config\.run.*unknown keys \['colour'\]"):
+        TrainConfig.from_dict(data)
+    data = make_config("quickstart").to_dict()
+    del data["ppo"]["gamma"]
+    with pytest.raises(ValueError, match=r"config\.ppo.*missing keys \['gamma'\]"):
+        TrainConfig.from_dict(data)
+
+
+def test_config_differences_ignore_host_loop_fields() -> None:
+    saved = make_config("quickstart")
+    longer = make_config(
+        "quickstart", **{"run.iterations": 500, "run.eval_every": 3, "run.run_dir": "elsewhere"}
+    )
+    assert config_differences(saved, longer) == []
+    other = make_config("quickstart", **{"ppo.learning_rate": 5e-4, "run.seed": 3})
+    differences = config_differences(saved, other)
+    assert len(differences) == 2
+    assert any(d.startswith("ppo.learning_rate: 0.001 -> 0.0005") for d in differences)
+    assert any(d.startswith("run.seed: 0 -> 3") for d in differences)
+
+
+def test_cli_args_parse_a_preset_with_flag_overrides() -> None:
+    import tyro
+
+    from elevens.train.cli_train import TrainArgs, TrainBenchArgs
+
+    args = tyro.cli(
+        TrainArgs,
+        args=["--resume", "2v2", "--ppo.learning-rate", "3e-4", "--run.run-dir", "runs/x",
+              "--opponent.kind", "league"],
+    )
+    assert args.resume and args.progress
+    assert args.config.preset == "2v2"
+    assert args.config.ppo.learning_rate == 3e-4
+    assert args.config.ppo.epochs == 5  # the preset's value where no flag is given
+    assert args.config.opponent.kind == "league"
+    assert args.config.run.run_dir == "runs/x"
+    default = tyro.cli(TrainArgs, args=[])
+    assert default.config == make_config("quickstart")
+    bench = tyro.cli(TrainBenchArgs, args=["--players", "1", "--json"])
+    assert bench.players == (1,) and bench.json
+
+
+def test_cli_train_validates_before_compiling() -> None:
+    import tyro
+
+    from elevens.train.cli_train import TrainArgs, train_command
+
+    args = tyro.cli(TrainArgs, args=["11v11", "--ppo.learning-rate", "-0.1"])
+    start = time.perf_counter()
+    with pytest.raises(ValueError, match="ppo.learning_rate=-0.1"):
+        train_command(args)
+    assert time.perf_counter() - start < 0.5

@@ -20,21 +20,7 @@ from elevens.env import Observation, State
 from elevens.eval import MatchResult, home_sides, outcome_from_score, play_match, summary
 from elevens.eval import match as match_lib
 from elevens.teams import NaiveTeam, RandomTeam, TeamworkTeam
-
-
-@dataclasses.dataclass(frozen=True)
-class StillTeam:
-    """Never moves."""
-
-    name: str = "still"
-
-    def init_carry(self, players_per_team: int) -> tuple[()]:
-        return ()
-
-    def act(
-        self, params: object, carry: tuple[()], obs: Observation, key: jax.Array
-    ) -> tuple[tuple[()], jax.Array]:
-        return carry, jnp.zeros((obs.self_features.shape[0], 2))
+from tests.teams.helpers import StillTeam
 
 
 @dataclasses.dataclass(frozen=True)

@@ -22,21 +22,6 @@ TEAMS: list[Team] = [RandomTeam(), NaiveTeam(), TeamworkTeam()]
 SIZES = [1, 2, 5, 11]
 
 
-@dataclasses.dataclass(frozen=True)
-class StillTeam:
-    """Stands still: an opponent that never moves (it still kicks a ball that meets its legs)."""
-
-    name: str = "still"
-
-    def init_carry(self, players_per_team: int) -> tuple[()]:
-        return ()
-
-    def act(
-        self, params: object, carry: tuple[()], obs: Observation, key: jax.Array
-    ) -> tuple[tuple[()], jax.Array]:
-        return carry, jnp.zeros((obs.self_features.shape[0], 2))
-
-
 @functools.cache
 def reset_fn(n: int) -> tuple[elevens.Soccer, elevens.EnvParams, Any]:
     """Jitted reset of an n v n game (eager JAX dispatches every small op: seconds per call)."""

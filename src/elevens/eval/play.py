@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import jax
@@ -11,7 +12,7 @@ import elevens
 from elevens.env import EnvParams, State
 from elevens.eval.match import MatchRecord, play_match
 from elevens.teams.base import TeamPolicy
-from elevens.teams.scripted import NaiveTeam, RandomTeam, TeamworkTeam
+from elevens.teams.scripted import Field, NaiveTeam, RandomTeam, TeamworkTeam
 
 HANDCRAFTED: dict[str, TeamPolicy] = {
     "random": RandomTeam(),
@@ -20,14 +21,35 @@ HANDCRAFTED: dict[str, TeamPolicy] = {
 }
 
 
-def resolve_team(name: str) -> TeamPolicy:
-    """A handcrafted team by name; a clear error lists the allowed names."""
+def resolve_team(name: str, params: EnvParams | None = None) -> TeamPolicy:
+    """A handcrafted team by name, told the field of ``params`` when given.
+
+    The scripted teams un-normalise their observations with an assumed geometry (SPEC.md's
+    100 x 70 field by default); on another field they need its numbers, or they would aim at the
+    wrong goal. Unknown names are a clear error that lists the allowed ones.
+    """
     try:
-        return HANDCRAFTED[name]
+        team = HANDCRAFTED[name]
     except KeyError:
         raise ValueError(
             f"team {name!r} is unknown: allowed are {', '.join(sorted(HANDCRAFTED))}"
         ) from None
+    if params is None:
+        return team
+    field = Field(
+        half_length=float(params.half_length),
+        half_width=float(params.half_width),
+        goal_half_width=float(params.goal_width) / 2,
+        turn_speed=float(params.turn_speed),
+        ball_friction=float(params.ball_friction),
+    )
+    if field == Field():
+        return team
+    if isinstance(team, NaiveTeam):
+        return dataclasses.replace(team, field=field)
+    if isinstance(team, TeamworkTeam):
+        return dataclasses.replace(team, attack=dataclasses.replace(team.attack, field=field))
+    return team
 
 
 def states_from_record(record: MatchRecord, game: int, params: EnvParams) -> State:
@@ -72,9 +94,9 @@ def play_and_render(
     out = Path(out)
     if out.suffix.lower() not in (".gif", ".mp4"):
         raise ValueError(f"out={str(out)!r} is invalid: the suffix must be .gif or .mp4")
-    home_team, away_team = resolve_team(home), resolve_team(away)
     overrides = {} if steps is None else {"episode_length": steps}
     env, params = elevens.make(f"{players}v{players}", **overrides)
+    home_team, away_team = resolve_team(home, params), resolve_team(away, params)
     if view is not None and not 0 <= view < params.num_players:
         raise ValueError(
             f"view={view} is invalid: it must be a player row from 0 to {params.num_players - 1}"

@@ -51,6 +51,7 @@ from flax import struct
 from elevens.env.params import EnvParams
 from elevens.env.soccer import Soccer
 from elevens.env.state import GlobalState, Observation
+from elevens.eval.play import resolve_team
 from elevens.nets.critic import AttentionCritic
 from elevens.nets.policy import AttentionPolicy, PolicyCarry
 from elevens.train import opponents as opp
@@ -560,7 +561,7 @@ def evaluate(
     results: dict[str, float] = {}
     for index, name in enumerate(teams):
         result = play_match(
-            trainer.env, trainer.env_params, learner, handcrafted_team(name, trainer.env_params),
+            trainer.env, trainer.env_params, learner, resolve_team(name, trainer.env_params),
             jax.random.fold_in(key, index), num_games, home_params=state.params.policy,
         )
         numbers = summary(result)
@@ -568,33 +569,6 @@ def evaluate(
         for field in ("win", "draw", "loss", "goals_for", "goals_against"):
             results[f"eval/{name}/{field}"] = numbers[field]
     return results
-
-
-def handcrafted_team(name: str, params: EnvParams) -> Any:
-    """The handcrafted team ``name`` (random, naive, teamwork), told the field it plays on.
-
-    The scripted teams un-normalise their observations with an assumed geometry (SPEC.md's
-    100 x 70 field by default); on another field (e.g. the quickstart's) they get its numbers,
-    or they would aim at the wrong goal.
-    """
-    from elevens.eval.play import resolve_team
-    from elevens.teams.scripted import Field, NaiveTeam, TeamworkTeam
-
-    team = resolve_team(name)
-    field = Field(
-        half_length=float(params.half_length),
-        half_width=float(params.half_width),
-        goal_half_width=float(params.goal_width) / 2,
-        turn_speed=float(params.turn_speed),
-        ball_friction=float(params.ball_friction),
-    )
-    if field == Field():
-        return team
-    if isinstance(team, NaiveTeam):
-        return dataclasses.replace(team, field=field)
-    if isinstance(team, TeamworkTeam):
-        return dataclasses.replace(team, attack=dataclasses.replace(team.attack, field=field))
-    return team
 
 
 def _host_metrics(metrics: Metrics) -> list[dict[str, float]]:
@@ -891,7 +865,7 @@ def write_gif(
         name="learner",
     )
     result = play_match(
-        trainer.env, trainer.env_params, learner, handcrafted_team(opponent, trainer.env_params),
+        trainer.env, trainer.env_params, learner, resolve_team(opponent, trainer.env_params),
         jax.random.key(seed + 2), 1, home_params=state.params.policy, swap_sides=False,
         record=True,
     )

@@ -343,6 +343,24 @@ def test_unroll_equals_single_steps(policy: AttentionPolicy, variables: dict) ->
         np.testing.assert_allclose(a, b, atol=1e-5)
 
 
+def test_batch_major_unroll_equals_time_major(policy: AttentionPolicy, variables: dict) -> None:
+    T, batch, n = 5, 4, 3
+    obs_seq = random_obs(12, (T, batch), n)
+    reset_seq = jnp.zeros((T, batch), bool).at[0].set(True).at[2, 1].set(True)
+    carry = _steps(policy, variables, policy.initial_carry((batch,)), obs_seq)
+    unroll = jax.jit(functools.partial(policy.apply, method=policy.unroll), static_argnums=4)
+    final_t, out_t = unroll(variables, carry, obs_seq, reset_seq, 0)
+    batch_major = jax.tree.map(lambda x: jnp.swapaxes(x, 0, 1), (obs_seq, reset_seq))
+    final_b, out_b = unroll(variables, carry, *batch_major, 1)
+    assert out_b.mean.shape == (batch, T, 2)
+    np.testing.assert_allclose(jnp.swapaxes(out_b.mean, 0, 1), out_t.mean, atol=1e-5)
+    np.testing.assert_allclose(jnp.swapaxes(out_b.log_std, 0, 1), out_t.log_std, atol=1e-5)
+    for a, b in zip(jax.tree.leaves(final_b), jax.tree.leaves(final_t), strict=True):
+        np.testing.assert_allclose(a, b, atol=1e-5)
+    with pytest.raises(ValueError, match="time_axis=2"):
+        policy.apply(variables, carry, obs_seq, reset_seq, 2, method=policy.unroll)
+
+
 def test_jit_equals_eager(policy: AttentionPolicy, variables: dict) -> None:
     obs = random_obs(11, (2, 4), 4)
     carry = policy.initial_carry((2, 4))

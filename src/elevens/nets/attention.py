@@ -44,10 +44,20 @@ class FF2(nn.Module):
 
     @nn.compact
     def __call__(self, x: jax.Array) -> jax.Array:
+        lead = x.shape[:-1]
+        x = flat_rows(x)
         x = self.activation(nn.Dense(self.features, name="hidden")(x))
         out_features = self.features if self.out_features is None else self.out_features
         x = nn.Dense(out_features, kernel_init=self.kernel_init_final, name="out")(x)
-        return self.activation(x) if self.activate_final else x
+        x = self.activation(x) if self.activate_final else x
+        return x.reshape(*lead, x.shape[-1])
+
+
+def flat_rows(x: jax.Array) -> jax.Array:
+    """[..., d] -> [rows, d]. A Dense on a 2-D input has a 2-D weight gradient, one plain matmul;
+    with several leading axes XLA's CPU backend contracts them through transposing copies, which
+    measured 3x slower for the gradient of a 2-layer block (11 v 11 update shapes)."""
+    return x.reshape(-1, x.shape[-1])
 
 
 class ConditionedFF2(nn.Module):
@@ -64,10 +74,16 @@ class ConditionedFF2(nn.Module):
 
     @nn.compact
     def __call__(self, entities: jax.Array, condition: jax.Array) -> jax.Array:
-        entity_part = nn.Dense(self.features, name="hidden_entity")(entities)
-        condition_part = nn.Dense(self.features, use_bias=False, name="hidden_condition")(condition)
-        x = self.activation(entity_part + condition_part[..., None, :])
-        return self.activation(nn.Dense(self.features, name="out")(x))
+        lead = entities.shape[:-1]  # [..., E]
+        entity_part = nn.Dense(self.features, name="hidden_entity")(flat_rows(entities))
+        condition_part = nn.Dense(self.features, use_bias=False, name="hidden_condition")(
+            flat_rows(condition)
+        )
+        rows = math.prod(lead[:-1])  # explicit: -1 is ambiguous when E == 0
+        x = entity_part.reshape(rows, lead[-1], self.features) + condition_part[:, None, :]
+        x = self.activation(x).reshape(-1, self.features)
+        x = self.activation(nn.Dense(self.features, name="out")(x))
+        return x.reshape(*lead, self.features)
 
 
 class MaskedMultiHeadAttention(nn.Module):
@@ -108,18 +124,26 @@ class MaskedMultiHeadAttention(nn.Module):
         out_kernel = self.param("out_kernel", out_init, (self.num_heads, head_size, width))
         out_bias = self.param("out_bias", nn.initializers.zeros, (width,))
 
+        # Observers on one leading axis m (see flat_rows: plain 2-D weight gradients).
+        lead = query.shape[:-1]
+        num_entities = values.shape[-2]
+        query = flat_rows(query)
+        rows = math.prod(lead)  # explicit: -1 is ambiguous when E == 0
+        values = values.reshape(rows, num_entities, width)
+        mask = mask.reshape(rows, num_entities)
         # Per observer: the query of each head, mapped back into value space through W_k.
-        head_queries = jnp.einsum("...w,whd->...hd", query, query_kernel) + query_bias
-        probes = jnp.einsum("...hd,whd->...hw", head_queries, key_kernel) / math.sqrt(head_size)
-        # Per (observer, entity): one dot product per head. The [..., E, H] layout of the scores
-        # measured 1.1 to 1.5x faster on CPU than [..., H, E] (forward and gradient).
-        scores = jnp.einsum("...ew,...hw->...eh", values, probes)
+        head_queries = jnp.einsum("mw,whd->mhd", query, query_kernel) + query_bias
+        probes = jnp.einsum("mhd,whd->mhw", head_queries, key_kernel) / math.sqrt(head_size)
+        # Per (observer, entity): one dot product per head. The [m, E, H] layout of the scores
+        # measured 1.1 to 1.5x faster on CPU than [m, H, E] (forward and gradient).
+        scores = jnp.einsum("mew,mhw->meh", values, probes)
         weights, any_visible = masked_softmax(scores, mask[..., None], axis=-2)
-        pooled = jnp.einsum("...eh,...ew->...hw", weights, values)
+        pooled = jnp.einsum("meh,mew->mhw", weights, values)
         # Back per observer: the value and output projections of each head.
-        heads = jnp.einsum("...hw,whd->...hd", pooled, value_kernel) + value_bias
-        out = jnp.einsum("...hd,hdw->...w", heads, out_kernel) + out_bias
-        return jnp.where(any_visible[..., 0, :1], out, 0.0)
+        heads = jnp.einsum("mhw,whd->mhd", pooled, value_kernel) + value_bias
+        out = jnp.einsum("mhd,hdw->mw", heads, out_kernel) + out_bias
+        out = jnp.where(any_visible[:, 0, :1], out, 0.0)
+        return out.reshape(*lead, width)
 
 
 def masked_softmax(

@@ -181,16 +181,30 @@ class AttentionPolicy(nn.Module):
         return carry, self.head(y)
 
     def unroll(
-        self, carry: PolicyCarry, obs_seq: Observation, reset_seq: jax.Array
+        self,
+        carry: PolicyCarry,
+        obs_seq: Observation,
+        reset_seq: jax.Array,
+        time_axis: int = 0,
     ) -> tuple[PolicyCarry, PolicyOutput]:
         """T steps: obs_seq with leading axes [T, ...], reset_seq bool[T, ...] ->
         (carry after step T, PolicyOutput with leading axes [T, ...]). Equals T calls of
-        ``__call__``."""
+        ``__call__``.
+
+        ``time_axis=1`` takes and returns batch-major sequences ([B, T, ...]; carry [B, ...]):
+        only the small LSTM input and output are transposed for the scan, not the observations.
+        """
+        if time_axis not in (0, 1):
+            raise ValueError(f"time_axis={time_axis!r} is invalid: it must be 0 or 1")
         x = self.embed(obs_seq)
+        if time_axis == 1:
+            x, reset_seq = jnp.swapaxes(x, 0, 1), jnp.swapaxes(reset_seq, 0, 1)
         scan = nn.scan(
             lambda core, carry, inputs: core(carry, *inputs),
             variable_broadcast="params",
             split_rngs={"params": False},
         )
         carry, y = scan(self.out_r, carry, (x, reset_seq))
+        if time_axis == 1:
+            y = jnp.swapaxes(y, 0, 1)
         return carry, self.head(y)

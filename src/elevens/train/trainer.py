@@ -268,16 +268,19 @@ def _build_trainer(config: TrainConfig) -> Trainer:
     def loss_fn(params: LearnerParams, batch: UpdateBatch) -> tuple[jax.Array, ppo.PPOLoss]:
         """A minibatch of g whole games: leading [g, n, T] (see UpdateBatch)."""
 
-        def unroll(carry: PolicyCarry, obs: Observation, reset: jax.Array) -> Any:
-            return policy.apply(params.policy, carry, obs, reset, method=AttentionPolicy.unroll)
-
         def sequences(tree: Any) -> Any:  # [g, n, ...] -> [g * n, ...], games outermost
             return jax.tree.map(lambda x: x.reshape(-1, *x.shape[2:]), tree)
 
-        # vmap over the minibatch's g * n sequences: each unrolls over its own T steps, and the
-        # encoders still run as one [g * n, T] batch (only the LSTM is scanned over time).
-        _, output = jax.vmap(unroll)(
-            sequences(batch.initial_carry), sequences(batch.obs), sequences(batch.reset)
+        # The minibatch's g * n sequences unroll together, batch-major: the encoders run as one
+        # [g * n * T] batch of rows (2-D matmuls, see nets.attention.flat_rows), and only the
+        # LSTM is scanned over time. (A vmap over sequences would hand XLA 3-D weight gradients.)
+        _, output = policy.apply(
+            params.policy,
+            sequences(batch.initial_carry),
+            sequences(batch.obs),
+            sequences(batch.reset),
+            1,
+            method=AttentionPolicy.unroll,
         )
         distribution = output.distribution()
         # The critic once per game and step, shared by the game's n players.

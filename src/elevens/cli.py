@@ -18,6 +18,13 @@ from elevens.eval.cli_eval import (
     ViewArgs,
     run_eval_command,
 )
+from elevens.robocup.cli_robocup import (
+    RoboCupBenchArgs,
+    RoboCupPlayArgs,
+    RoboCupServeArgs,
+    RoboCupTrainArgs,
+    run_robocup_command,
+)
 from elevens.train.cli_train import TrainArgs, TrainBenchArgs, bench_train_command, train_command
 
 TEAM_NAMES = ("random", "naive", "teamwork")
@@ -105,6 +112,10 @@ Command = (
     | Annotated[CurvesArgs, tyro.conf.subcommand("curves")]
     | Annotated[RenderArgs, tyro.conf.subcommand("render")]
     | Annotated[ViewArgs, tyro.conf.subcommand("view")]
+    | Annotated[RoboCupServeArgs, tyro.conf.subcommand("robocup-serve")]
+    | Annotated[RoboCupPlayArgs, tyro.conf.subcommand("robocup-play")]
+    | Annotated[RoboCupTrainArgs, tyro.conf.subcommand("robocup-train")]
+    | Annotated[RoboCupBenchArgs, tyro.conf.subcommand("robocup-bench")]
 )
 
 
@@ -112,8 +123,8 @@ def main(argv: list[str] | None = None) -> None:
     """Entry point of the ``elevens`` console script."""
     argv = list(sys.argv[1:] if argv is None else argv)
     # `elevens bench env ...` reads better than a hyphenated subcommand; accept both.
-    if len(argv) >= 2 and argv[0] == "bench":
-        argv = [f"bench-{argv[1]}", *argv[2:]]
+    if len(argv) >= 2 and argv[0] in ("bench", "robocup") and not argv[1].startswith("-"):
+        argv = [f"{argv[0]}-{argv[1]}", *argv[2:]]
     args = tyro.cli(Command, args=argv, prog="elevens")
     if isinstance(args, PlayArgs):
         play(args)
@@ -123,6 +134,10 @@ def main(argv: list[str] | None = None) -> None:
         train_command(args)
     elif isinstance(args, TrainBenchArgs):
         bench_train_command(args)
+    elif isinstance(
+        args, RoboCupServeArgs | RoboCupPlayArgs | RoboCupTrainArgs | RoboCupBenchArgs
+    ):
+        run_robocup_command(args)
     elif isinstance(args, TournamentArgs | AnalyzeArgs | CurvesArgs | RenderArgs | ViewArgs):
         run_eval_command(args)
 

@@ -5,6 +5,13 @@
 * :mod:`elevens.robocup.localize` -- self-localisation of a player from one ``see``.
 * :mod:`elevens.robocup.actions` -- the thesis' 12-value continuous action mapped to one
   server command per cycle.
+* :mod:`elevens.robocup.server` -- finding and running rcssserver processes on free ports.
+* :mod:`elevens.robocup.client` -- 22 players and the trainer in synch mode over UDP.
+* :mod:`elevens.robocup.observe` / :mod:`elevens.robocup.env` -- :class:`RoboCupEnv`, the
+  simulator's reset/step contract and containers on top of the server.
+* :mod:`elevens.robocup.naive` -- the RoboCup naive team of thesis section 6.7.
+* :mod:`elevens.robocup.train` / :mod:`elevens.robocup.play` -- PPO training and matches in the
+  server (``elevens robocup ...``).
 """
 
 from elevens.robocup.actions import (
@@ -14,7 +21,17 @@ from elevens.robocup.actions import (
     action_to_command,
     actions_to_commands,
 )
+from elevens.robocup.client import (
+    ClientStats,
+    Cycle,
+    PlayerCycle,
+    RoboCupClient,
+    ServerDied,
+    measure_cycles,
+)
+from elevens.robocup.env import RoboCupConfig, RoboCupEnv, sim_actions_to_commands
 from elevens.robocup.localize import LANDMARKS, PoseEstimate, localize
+from elevens.robocup.naive import RoboCupNaiveTeam
 from elevens.robocup.protocol import (
     Command,
     FullState,
@@ -32,9 +49,35 @@ from elevens.robocup.protocol import (
     parse_message,
     parse_sexp,
 )
+from elevens.robocup.server import (
+    INSTALL_HINT,
+    TRAINING_OPTIONS,
+    RcssserverNotFound,
+    ServerAddress,
+    ServerProcess,
+    find_rcssserver,
+    free_port_triple,
+)
 
 __all__ = [
     "ACTION_SIZE",
+    "INSTALL_HINT",
+    "TRAINING_OPTIONS",
+    "ClientStats",
+    "Cycle",
+    "PlayerCycle",
+    "RcssserverNotFound",
+    "RoboCupClient",
+    "RoboCupConfig",
+    "RoboCupEnv",
+    "RoboCupNaiveTeam",
+    "ServerAddress",
+    "ServerDied",
+    "ServerProcess",
+    "find_rcssserver",
+    "free_port_triple",
+    "measure_cycles",
+    "sim_actions_to_commands",
     "LANDMARKS",
     "ActionIndex",
     "ActionScaling",

@@ -1,0 +1,213 @@
+"""`elevens robocup serve|play|train|bench`: the RoboCup bridge from the command line.
+
+Every command finds rcssserver through ``--rcssserver``, ``$ELEVENS_RCSSSERVER`` or PATH; when
+it is missing it says so and how to install it (``elevens.robocup.server.INSTALL_HINT``).
+"""
+
+from __future__ import annotations
+
+import json as json_lib
+import sys
+import time
+from dataclasses import asdict, dataclass
+
+from elevens.robocup.server import RcssserverNotFound, find_rcssserver
+
+
+@dataclass(frozen=True)
+class RoboCupServeArgs:
+    """Start N rcssserver processes (training options, synch mode) on free loopback ports and
+    keep them running until Ctrl-C."""
+
+    servers: int = 1
+    """How many server processes."""
+    rcssserver: str | None = None
+    """The server binary (default: $ELEVENS_RCSSSERVER, then PATH)."""
+
+
+@dataclass(frozen=True)
+class RoboCupPlayArgs:
+    """Play a checkpoint or a handcrafted team against another in rcssserver."""
+
+    team0: str = "naive"
+    """Left team: naive, random, or a checkpoint path (run, checkpoints or step directory)."""
+    team1: str = "random"
+    """Right team: naive, random, or a checkpoint path."""
+    players: int = 11
+    """Players per team, 1..11."""
+    episodes: int = 1
+    """Episodes to play."""
+    steps: int = 400
+    """Steps (server cycles) per episode."""
+    action: str = "sim"
+    """'sim': the simulator's (move, rot) actions (checkpoints need it); 'thesis12': table 4.1's
+    12 values (handcrafted teams only)."""
+    keep_ball_in_play: bool = False
+    """Put the ball back at the lines instead of the referee's kick-ins."""
+    seed: int = 0
+    """Spawns and the teams' sampling."""
+    json: bool = False
+    """Print one JSON object per episode."""
+    rcssserver: str | None = None
+    """The server binary (default: $ELEVENS_RCSSSERVER, then PATH)."""
+
+
+@dataclass(frozen=True)
+class RoboCupTrainArgs:
+    """Train with the same PPO in rcssserver: N server processes feed the compiled learner."""
+
+    players: int = 2
+    """Players per team, 1..11."""
+    servers: int = 2
+    """Server processes = games per iteration."""
+    steps: int = 200
+    """Steps (server cycles) per episode."""
+    minutes: float | None = 10.0
+    """Stop after this many minutes (None: only --iterations)."""
+    iterations: int = 1000
+    """Stop after this many iterations."""
+    opponent: str = "polyak"
+    """'polyak' (frozen while the learner is not ahead) or 'self'."""
+    learning_rate: float = 1e-4
+    """Adam's learning rate (table 6.1)."""
+    keep_ball_in_play: bool = True
+    """Put the ball back at the lines (the thesis did this in its shaping phase)."""
+    init_from: str | None = None
+    """Start from a simulator checkpoint (transfer), e.g. runs/2v2."""
+    run_dir: str = "runs/robocup"
+    """Where metrics, episodes.csv and checkpoints go."""
+    resume: bool = False
+    """Continue the latest checkpoint of --run-dir."""
+    checkpoint_every: int = 5
+    """Iterations between checkpoints."""
+    seed: int = 0
+    """Seeds the networks and spawns."""
+    rcssserver: str | None = None
+    """The server binary (default: $ELEVENS_RCSSSERVER, then PATH)."""
+
+
+@dataclass(frozen=True)
+class RoboCupBenchArgs:
+    """Synchronous cycles per second with 22 players and the trainer from one Python process,
+    random actions, and where the time goes (send, wait for the server, parse)."""
+
+    players: int = 11
+    """Players per team."""
+    cycles: int = 2000
+    """Cycles to time (after a warm-up)."""
+    parse: bool = True
+    """Parse every see and sense_body (what RoboCupEnv needs); False only finds each (think)."""
+    eye: bool = False
+    """Turn on the trainer's see_global every cycle (the critic's view)."""
+    json: bool = False
+    """Print one JSON object (key cycles_per_s) instead of a line."""
+    rcssserver: str | None = None
+    """The server binary (default: $ELEVENS_RCSSSERVER, then PATH)."""
+
+
+RoboCupArgs = RoboCupServeArgs | RoboCupPlayArgs | RoboCupTrainArgs | RoboCupBenchArgs
+
+
+def _binary(path: str | None) -> str:
+    try:
+        return find_rcssserver(path)
+    except RcssserverNotFound as error:
+        print(f"elevens robocup: {error}", file=sys.stderr)
+        raise SystemExit(2) from None
+
+
+def serve(args: RoboCupServeArgs) -> None:
+    from elevens.robocup.server import ServerProcess
+
+    binary = _binary(args.rcssserver)
+    servers = [ServerProcess(binary).start() for _ in range(args.servers)]
+    try:
+        for server in servers:
+            a = server.address
+            print(
+                f"rcssserver pid {server.pid}: players {a.host}:{a.port}, trainer {a.coach_port}, "
+                f"online coach {a.olcoach_port}, log {server.log_path}",
+                flush=True,
+            )
+        print("Ctrl-C stops them.", flush=True)
+        while all(server.alive for server in servers):
+            time.sleep(0.5)
+        print("a server exited:", file=sys.stderr)
+        for server in servers:
+            if not server.alive:
+                print(server.log_tail(10), file=sys.stderr)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        for server in servers:
+            server.stop()
+
+
+def play(args: RoboCupPlayArgs) -> None:
+    from elevens.robocup.play import play_robocup
+
+    binary = _binary(args.rcssserver)
+    results = play_robocup(
+        args.team0, args.team1, players_per_team=args.players, episodes=args.episodes,
+        episode_length=args.steps, action=args.action, keep_ball_in_play=args.keep_ball_in_play,
+        rcssserver=binary, seed=args.seed,
+        print_fn=(lambda _: None) if args.json else print,
+    )
+    if args.json:
+        for result in results:
+            print(json_lib.dumps(asdict(result)))
+    else:
+        goals = [sum(r.goals[side] for r in results) for side in (0, 1)]
+        print(f"total: {args.team0} {goals[0]} - {goals[1]} {args.team1}")
+
+
+def train(args: RoboCupTrainArgs) -> None:
+    from elevens.robocup.train import RoboCupTrainConfig, train_robocup
+
+    binary = _binary(args.rcssserver)
+    config = RoboCupTrainConfig(
+        players_per_team=args.players, servers=args.servers, episode_length=args.steps,
+        iterations=args.iterations, minutes=args.minutes, keep_ball_in_play=args.keep_ball_in_play,
+        opponent=args.opponent, learning_rate=args.learning_rate, init_from=args.init_from,
+        run_dir=args.run_dir, rcssserver=binary, checkpoint_every=args.checkpoint_every,
+        seed=args.seed,
+    )
+    result = train_robocup(config, resume=args.resume)
+    print(
+        f"robocup train: {result.iterations} iterations, {result.env_steps} env steps, "
+        f"{result.episodes} episodes, {result.restarts} server restarts in {result.wall_s:.0f} s; "
+        f"checkpoint {result.checkpoint}"
+    )
+
+
+def bench(args: RoboCupBenchArgs) -> None:
+    from elevens.robocup.client import measure_cycles
+    from elevens.robocup.server import ServerProcess
+
+    binary = _binary(args.rcssserver)
+    with ServerProcess(binary) as server:
+        result = measure_cycles(
+            server.address, players_per_team=args.players, cycles=args.cycles, eye=args.eye,
+            parse=args.parse,
+        )
+    result = {"players": 2 * args.players, "parse": args.parse, "eye": args.eye, **result}
+    if args.json:
+        print(json_lib.dumps(result))
+        return
+    print(
+        f"rcssserver {2 * args.players} players + trainer (eye {'on' if args.eye else 'off'}, "
+        f"parse {'on' if args.parse else 'off'}): {result['cycles_per_s']:,.0f} cycles/s | per "
+        f"cycle: send {result['send_ms']:.2f} ms, wait for the server {result['wait_ms']:.2f} ms, "
+        f"parse {result['parse_ms']:.2f} ms, other {result['other_ms']:.2f} ms"
+    )
+
+
+def run_robocup_command(args: RoboCupArgs) -> None:
+    if isinstance(args, RoboCupServeArgs):
+        serve(args)
+    elif isinstance(args, RoboCupPlayArgs):
+        play(args)
+    elif isinstance(args, RoboCupTrainArgs):
+        train(args)
+    else:
+        bench(args)

@@ -1,0 +1,512 @@
+"""Training in rcssserver: the same PPO as in the simulator, fed by games on server processes.
+
+The thesis (sections 4.5 and 6.7) trains its algorithm unchanged in the official server. Here
+``G`` RoboCupEnv games, each on its own rcssserver process, play one episode each per iteration
+on the host (the server is a separate process, so this part cannot be compiled); both teams'
+networks act in one jitted call per step for all games. The episodes are packed into the same
+``Rollout`` container the compiled rollout makes, and the trainer's compiled ``learn`` (advantages
+and the PPO epochs) does the update. The opponent is the Polyak-averaged copy with the freeze rule
+(or plain self-play), and the shaping schedule switches shaping off as in the simulator.
+
+Episode boundaries are the loop's own: every game is reset at the start of an iteration and ends
+after ``episode_length`` steps. If a server dies mid-episode, RoboCupEnv restarts it and starts a
+fresh episode; that step is marked as an episode end and the next one as a start (the LSTM memory
+is zeroed there), so the advantages never run across it.
+
+Games alternate sides as in the simulator (``learner_sides``): the learner plays the left side
+in the first half of the games and the right side in the others.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import logging
+import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from elevens.env.state import GlobalState, Observation
+from elevens.train import opponents as opp
+from elevens.train.config import TrainConfig, make_config
+from elevens.train.rollout import Rollout, Transition, learner_sides
+from elevens.train.shaping import shaping_update
+
+log = logging.getLogger(__name__)
+
+EPISODES_CSV = "episodes.csv"
+EPISODE_FIELDS = (
+    "iteration", "game", "learner_side", "goals_for", "goals_against", "steps", "restarts",
+    "missed", "malformed", "ball_returned", "wall_s",
+)
+
+
+@dataclasses.dataclass(frozen=True)
+class RoboCupTrainConfig:
+    """A training run in rcssserver. Network and PPO numbers come from ``base`` (a TrainConfig
+    preset, by default the simulator's 2v2 preset: table 6.1 and 6.2)."""
+
+    players_per_team: int = 2
+    """Players a side (1 to 11)."""
+    servers: int = 2
+    """Server processes = games per iteration (one episode each)."""
+    episode_length: int = 200
+    """Steps (server cycles) per episode."""
+    iterations: int = 1000
+    """Stop after this many iterations..."""
+    minutes: float | None = 10.0
+    """...or after this many minutes of wall-clock (None: no limit)."""
+    keep_ball_in_play: bool = True
+    """Put the ball back at the lines instead of kick-ins (the thesis did this while shaping)."""
+    opponent: str = "polyak"
+    """"polyak" (freeze rule of section 5.2.6) or "self" (plain self-play)."""
+    learning_rate: float = 1e-4
+    """Adam's learning rate (table 6.1)."""
+    init_from: str | None = None
+    """A simulator checkpoint (run, checkpoints or step directory) whose policy and critic start
+    the run: the thesis' transfer from the fast simulator to the server."""
+    run_dir: str = "runs/robocup"
+    """Where metrics.csv, episodes.csv, TensorBoard events and checkpoints go."""
+    rcssserver: str | None = None
+    """The server binary (default: $ELEVENS_RCSSSERVER, then PATH)."""
+    checkpoint_every: int = 5
+    """Iterations between checkpoints (and always at the end or on Ctrl-C)."""
+    seed: int = 0
+    """Seeds the networks and the spawns (the server's own noise is not seedable)."""
+    threads: bool = True
+    """Step the games' servers from a thread pool, so one server simulates while Python parses
+    another's messages."""
+
+    def __post_init__(self) -> None:
+        checks = (
+            ("players_per_team", 1 <= self.players_per_team <= 11, "an int from 1 to 11"),
+            ("servers", self.servers >= 1, "an int >= 1"),
+            ("episode_length", self.episode_length >= 2, "an int >= 2"),
+            ("iterations", self.iterations >= 1, "an int >= 1"),
+            ("minutes", self.minutes is None or self.minutes > 0, "None or > 0"),
+            ("opponent", self.opponent in ("polyak", "self"), "'polyak' or 'self'"),
+            ("learning_rate", self.learning_rate > 0, "> 0"),
+            ("checkpoint_every", self.checkpoint_every >= 1, "an int >= 1"),
+        )
+        for name, ok, allowed in checks:
+            if not ok:
+                raise ValueError(f"{name}={getattr(self, name)!r} is invalid: it must be {allowed}")
+
+    def train_config(self) -> TrainConfig:
+        """The simulator TrainConfig whose networks, PPO and compiled ``learn`` this run uses."""
+        n = self.players_per_team
+        return make_config(
+            "2v2",
+            **{
+                "env.scenario": f"{n}v{n}",
+                "env.episode_length": self.episode_length,
+                "opponent.kind": self.opponent,
+                "ppo.learning_rate": self.learning_rate,
+                "ppo.batch_size": self.servers * n,
+                "ppo.minibatch_size": n,
+                "run.games_per_iteration": self.servers,
+                "run.iterations_per_chunk": 1,
+                "run.run_dir": self.run_dir,
+                "run.seed": self.seed,
+            },
+        )
+
+
+@dataclasses.dataclass
+class RoboCupTrainResult:
+    iterations: int
+    env_steps: int
+    episodes: int
+    restarts: int
+    wall_s: float
+    interrupted: bool
+    checkpoint: Path | None
+    run_dir: Path
+
+
+EnvFactory = Callable[[int], Any]
+"""game index -> a RoboCupEnv-like object (reset(seed), step(actions), global_state(state))."""
+
+
+def _default_env_factory(config: RoboCupTrainConfig) -> EnvFactory:
+    from elevens.robocup.env import RoboCupConfig, RoboCupEnv
+
+    def make(index: int) -> Any:
+        return RoboCupEnv(
+            RoboCupConfig(
+                players_per_team=config.players_per_team,
+                # The loop ends episodes itself; the env's own limit only has to lie beyond.
+                episode_length=config.episode_length + 1,
+                keep_ball_in_play=config.keep_ball_in_play,
+                action="sim",
+                rcssserver=config.rcssserver,
+            )
+        )
+
+    return make
+
+
+def _stack(trees: Sequence[Any]) -> Any:
+    return jax.tree.map(lambda *leaves: np.stack([np.asarray(x) for x in leaves]), *trees)
+
+
+def _pick(tree: Any, sides: np.ndarray) -> Any:
+    """Leaves [G, 2, ...] -> [G, ...]: team ``sides[g]`` of game g."""
+    index = np.arange(len(sides))
+    return jax.tree.map(lambda leaf: leaf[index, sides], tree)
+
+
+def make_actor(policy: Any) -> Callable[..., Any]:
+    """Jitted: (params, carry, obs [G, n], reset bool[G, n], key) ->
+    (carry, pre_tanh f32[G, n, 2], log_prob f32[G, n], action f32[G, n, 2])."""
+
+    @jax.jit
+    def act(params: Any, carry: Any, obs: Observation, reset: jax.Array, key: jax.Array) -> Any:
+        carry, output = policy.apply(params, carry, obs, reset)
+        distribution = output.distribution()
+        sample = distribution.sample(key)
+        return carry, sample.pre_tanh, distribution.log_prob(sample.pre_tanh), sample.action
+
+    return act
+
+
+@dataclasses.dataclass
+class _GameLog:
+    goals_for: int = 0
+    goals_against: int = 0
+    restarts: int = 0
+    missed: int = 0
+    malformed: int = 0
+    ball_returned: int = 0
+
+
+def play_iteration(
+    envs: Sequence[Any],
+    act: Callable[..., Any],
+    policy: Any,
+    learner_params: Any,
+    opponent_params: Any,
+    key: jax.Array,
+    *,
+    episode_length: int,
+    shaping_active: bool,
+    seed: int,
+    pool: ThreadPoolExecutor | None = None,
+) -> tuple[Rollout, list[_GameLog]]:
+    """One episode of every game (learner against opponent) packed as a ``Rollout``."""
+    num_games = len(envs)
+    sides = learner_sides(num_games)
+    others = 1 - sides
+    index = np.arange(num_games)
+    n = envs[0].players_per_team
+    T = episode_length
+
+    def run(fn: Callable[[int], Any]) -> list[Any]:
+        if pool is None:
+            return [fn(g) for g in range(num_games)]
+        return list(pool.map(fn, range(num_games)))
+
+    started = run(lambda g: envs[g].reset(seed=seed + g))
+    states = [s for s, _ in started]
+    observations = [o for _, o in started]
+    learner_carry = policy.initial_carry((num_games, n))
+    opponent_carry = learner_carry
+    initial_carry = learner_carry
+    reset = np.ones(num_games, bool)
+    logs = [_GameLog() for _ in range(num_games)]
+    record: dict[str, list[Any]] = {
+        name: [] for name in ("obs", "global_state", "pre_tanh", "log_prob", "reward", "done",
+                              "reset", "goal", "ball", "approach")
+    }
+    step_keys = jax.random.split(key, (T, 2))
+    for t in range(T):
+        obs = _stack(observations)  # leading [G, 2, n]
+        views = [env.global_state(s) for env, s in zip(envs, states, strict=True)]
+        global_state = _pick(_stack(views), sides)
+        learner_obs, opponent_obs = _pick(obs, sides), _pick(obs, others)
+        player_reset = np.broadcast_to(reset[:, None], (num_games, n))
+        learner_carry, pre_tanh, log_prob, learner_action = act(
+            learner_params, learner_carry, learner_obs, player_reset, step_keys[t, 0]
+        )
+        opponent_carry, _, _, opponent_action = act(
+            opponent_params, opponent_carry, opponent_obs, player_reset, step_keys[t, 1]
+        )
+        actions = np.zeros((num_games, 2, n, 2), np.float32)
+        actions[index, sides] = np.asarray(learner_action)
+        actions[index, others] = np.asarray(opponent_action)
+        def step_game(g: int, actions: np.ndarray = actions) -> Any:
+            return envs[g].step(actions[g])
+
+        results = run(step_game)
+        rewards = np.zeros((num_games, n), np.float32)
+        terms = np.zeros((3, num_games, n), np.float32)
+        done = np.zeros(num_games, bool)
+        for g, (state, observation, _, _, info) in enumerate(results):
+            side = sides[g]
+            goal = np.asarray(info["goal_reward"])[side]
+            ball = np.asarray(info["ball_shaping"])[side]
+            approach = np.asarray(info["approach_shaping"])[side]
+            terms[:, g] = goal, ball, approach
+            rewards[g] = goal + (ball + approach if shaping_active else 0.0)
+            goals = np.asarray(info["goals"])
+            logs[g].goals_for += int(goals[side])
+            logs[g].goals_against += int(goals[1 - side])
+            logs[g].missed += int(info.get("missed", 0))
+            logs[g].malformed += int(info.get("malformed", 0))
+            logs[g].ball_returned += int(bool(info.get("ball_returned", False)))
+            if info.get("restarted", False):
+                logs[g].restarts += 1
+                done[g] = True  # the episode was cut short; a fresh one starts next step
+            states[g], observations[g] = state, observation
+        if t == T - 1:
+            done[:] = True
+        for name, value in (
+            ("obs", learner_obs), ("global_state", global_state),
+            ("pre_tanh", np.asarray(pre_tanh)), ("log_prob", np.asarray(log_prob)),
+            ("reward", rewards), ("done", done.copy()), ("reset", reset.copy()),
+            ("goal", terms[0]), ("ball", terms[1]), ("approach", terms[2]),
+        ):
+            record[name].append(value)
+        reset = done.copy()  # the policy zeroes those rows' memories itself (RecurrentCore)
+
+    def per_player(steps: list[Any]) -> Any:  # T x [G, n, ...] -> [G * n, T, ...]
+        stacked = _stack(steps)  # [T, G, n, ...]
+        return jax.tree.map(
+            lambda x: jnp.asarray(np.moveaxis(x, 0, 2).reshape(num_games * n, T, *x.shape[3:])),
+            stacked,
+        )
+
+    def per_game(steps: list[Any]) -> Any:  # T x [G, ...] -> [G, T, ...]
+        return jax.tree.map(lambda x: jnp.asarray(np.moveaxis(x, 0, 1)), _stack(steps))
+
+    def games_to_players(x: Any) -> Any:
+        return jax.tree.map(lambda leaf: jnp.repeat(leaf, n, axis=0), x)
+
+    game_state: GlobalState = per_game(record["global_state"])
+    done_games = per_game(record["done"])
+    transitions = Transition(
+        obs=per_player(record["obs"]),
+        global_state=games_to_players(game_state),
+        pre_tanh=per_player(record["pre_tanh"]),
+        log_prob=per_player(record["log_prob"]),
+        reward=per_player(record["reward"]),
+        done=games_to_players(done_games),
+        truncated=games_to_players(done_games),
+        reset=games_to_players(per_game(record["reset"])),
+        initial_carry=jax.tree.map(
+            lambda leaf: leaf.reshape(num_games * n, *leaf.shape[2:]), initial_carry
+        ),
+    )
+    goal_sum = np.sum(np.stack(record["goal"]), axis=0)  # [G, n]
+    ball_sum = np.sum(np.stack(record["ball"]), axis=0)
+    approach_sum = np.sum(np.stack(record["approach"]), axis=0)
+    rollout = Rollout(
+        transitions=transitions,
+        learner_side=jnp.asarray(sides),
+        goals_for=jnp.asarray([log.goals_for for log in logs], jnp.int32),
+        goals_against=jnp.asarray([log.goals_against for log in logs], jnp.int32),
+        game_global_state=game_state,
+        goal_reward=jnp.asarray(goal_sum[:, 0]),
+        ball_shaping=jnp.asarray(ball_sum[:, 0]),
+        approach_shaping=jnp.asarray(approach_sum.mean(axis=-1)),
+    )
+    return rollout, logs
+
+
+def _load_initial_params(path: str, state: Any) -> Any:
+    """``state`` with the policy and critic of a simulator checkpoint (and the opponent copy)."""
+    from elevens.eval.teams import _checkpoint_directory
+    from elevens.train.checkpoint import Checkpointer
+
+    directory, step = _checkpoint_directory(Path(path))
+    restored, _, _ = Checkpointer(directory).restore(state, step)
+    params = restored.params
+    opponent = state.opponent
+    if opponent.polyak is not None:
+        opponent = opponent.replace(polyak=opp.polyak_init(params.policy))
+    return state.replace(params=params, opponent=opponent)
+
+
+def train_robocup(
+    config: RoboCupTrainConfig,
+    *,
+    resume: bool = False,
+    env_factory: EnvFactory | None = None,
+    print_fn: Callable[[str], None] = print,
+) -> RoboCupTrainResult:
+    """Run ``config``: iterations of G server games and a PPO update, until ``iterations`` or
+    ``minutes``. Ctrl-C writes a checkpoint and stops cleanly; ``resume`` continues the latest
+    checkpoint of ``run_dir``."""
+    from elevens.train.checkpoint import Checkpointer
+    from elevens.train.logging import RunLogger
+    from elevens.train.shaping import shaping_scoring_rate
+    from elevens.train.trainer import TrainState, make_trainer
+
+    began = time.perf_counter()
+    train_config = config.train_config()
+    run_dir = Path(config.run_dir)
+    checkpointer = Checkpointer(run_dir / "checkpoints", max_to_keep=3)
+    latest = checkpointer.latest_step()
+    if latest is not None and not resume:
+        raise ValueError(
+            f"{checkpointer.directory} already holds checkpoints (latest: iteration {latest}); "
+            "pass --resume to continue that run, or choose another --run-dir"
+        )
+    trainer = make_trainer(train_config)
+    state: TrainState = trainer.init(jax.random.key(config.seed))
+    if latest is not None:
+        state, _, _ = checkpointer.restore(state)
+    elif config.init_from is not None:
+        state = _load_initial_params(config.init_from, state)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    (run_dir / "config.json").write_text(train_config.to_json(), encoding="utf-8")
+    (run_dir / "robocup_config.json").write_text(
+        json.dumps(dataclasses.asdict(config), indent=2), encoding="utf-8"
+    )
+    learn = jax.jit(trainer.learn)
+    act = make_actor(trainer.policy)
+    factory = env_factory or _default_env_factory(config)
+    logger = RunLogger(run_dir)
+    episodes_path = run_dir / EPISODES_CSV
+    new_file = not episodes_path.exists()
+    episodes_file = episodes_path.open("a", newline="", encoding="utf-8")
+    episodes_csv = csv.writer(episodes_file)
+    if new_file:
+        episodes_csv.writerow(EPISODE_FIELDS)
+    deadline = None if config.minutes is None else began + 60.0 * config.minutes
+    iteration = int(state.iteration)
+    start_iteration = iteration
+    last_saved = iteration if latest is not None else None
+    envs: list[Any] = []
+    pool = ThreadPoolExecutor(config.servers) if config.threads and config.servers > 1 else None
+    interrupted = False
+    episodes = restarts = 0
+    opponent_config = train_config.opponent
+    env_config = train_config.env
+
+    def save(current: TrainState) -> Path:
+        nonlocal last_saved
+        it = int(current.iteration)
+        if last_saved == it:
+            return checkpointer.step_directory(it)
+        last_saved = it
+        return checkpointer.save(
+            it, current, train_config.to_dict(),
+            {"iteration": it, "env_steps": it * config.servers * config.episode_length,
+             "robocup": True},
+        )
+
+    checkpoint: Path | None = None
+    try:
+        envs = [factory(g) for g in range(config.servers)]
+        while iteration < config.iterations:
+            if deadline is not None and time.perf_counter() >= deadline:
+                break
+            iteration_began = time.perf_counter()
+            key, rollout_key, shuffle_key = jax.random.split(state.key, 3)
+            polyak = state.opponent.polyak
+            assert polyak is not None
+            data, logs = play_iteration(
+                envs, act, trainer.policy, state.params.policy, polyak.params, rollout_key,
+                episode_length=config.episode_length,
+                shaping_active=bool(state.shaping.active),
+                seed=config.seed * 1_000_003 + iteration * config.servers,
+                pool=pool,
+            )
+            played = time.perf_counter()
+            learned = learn(state.params, state.opt_state, data, shuffle_key)
+            result = learned.update
+            outcomes = opp.game_outcome(data.goals_for, data.goals_against)
+            if config.opponent == "polyak":
+                polyak = opp.polyak_step(
+                    polyak, result.params.policy, jnp.mean(outcomes),
+                    opponent_config.polyak_tau, opponent_config.freeze_threshold,
+                )
+            else:
+                polyak = polyak.replace(params=opp.self_play_opponent(result.params.policy))
+            shaping = state.shaping
+            if env_config.shaping_schedule:
+                shaping = shaping_update(
+                    shaping, data.goals_for >= 1, env_config.shaping_threshold
+                )
+            if bool(state.shaping.active) and not bool(shaping.active):
+                log.info("shaping switched off after iteration %d", iteration + 1)
+                print_fn(f"robocup train: reward shaping switched off at iteration {iteration + 1}")
+            state = TrainState(
+                params=result.params,
+                opt_state=result.opt_state,
+                opponent=state.opponent.replace(polyak=polyak),
+                shaping=shaping,
+                key=key,
+                iteration=state.iteration + 1,
+                env_steps=state.env_steps
+                + jnp.asarray(config.servers * config.episode_length, jnp.uint32),
+            )
+            iteration += 1
+            now = time.perf_counter()
+            for g, game in enumerate(logs):
+                episodes_csv.writerow(
+                    (iteration, g, int(data.learner_side[g]), game.goals_for, game.goals_against,
+                     config.episode_length, game.restarts, game.missed, game.malformed,
+                     game.ball_returned, f"{now - began:.1f}")
+                )
+                restarts += game.restarts
+            episodes += len(logs)
+            episodes_file.flush()
+            steps = config.servers * config.episode_length
+            metrics = {
+                "train/mean_score": float(jnp.mean(outcomes)),
+                "train/goals_for": float(jnp.mean(data.goals_for)),
+                "train/goals_against": float(jnp.mean(data.goals_against)),
+                "train/loss": float(result.metrics.total),
+                "train/entropy": float(result.metrics.entropy),
+                "train/approx_kl": float(result.metrics.approx_kl),
+                "env/shaping_active": float(state.shaping.active),
+                "env/scoring_rate": float(shaping_scoring_rate(state.shaping)),
+                "opponent/frozen": float(polyak.frozen),
+                "robocup/restarts": float(sum(game.restarts for game in logs)),
+                "robocup/missed": float(sum(game.missed for game in logs)),
+                "robocup/malformed": float(sum(game.malformed for game in logs)),
+                "time/play_steps_per_s": steps / max(played - iteration_began, 1e-9),
+                "time/env_steps_per_s": steps / max(now - iteration_began, 1e-9),
+                "time/env_steps": float(iteration * steps),
+            }
+            logger.log(iteration, metrics)
+            print_fn(
+                f"robocup train {iteration}: score {metrics['train/mean_score']:.2f} goals "
+                f"{metrics['train/goals_for']:.2f}-{metrics['train/goals_against']:.2f} | "
+                f"{metrics['time/env_steps_per_s']:.0f} env steps/s "
+                f"(play {metrics['time/play_steps_per_s']:.0f}) | restarts {restarts}"
+            )
+            if iteration % config.checkpoint_every == 0:
+                checkpoint = save(state)
+    except KeyboardInterrupt:
+        interrupted = True
+        print_fn("robocup train: interrupted, writing a checkpoint")
+    finally:
+        if iteration > start_iteration or latest is None:
+            checkpoint = save(state)
+        checkpointer.close()
+        logger.close()
+        episodes_file.close()
+        if pool is not None:
+            pool.shutdown(wait=True)
+        for env in envs:
+            env.close()
+    return RoboCupTrainResult(
+        iterations=iteration,
+        env_steps=iteration * config.servers * config.episode_length,
+        episodes=episodes,
+        restarts=restarts,
+        wall_s=time.perf_counter() - began,
+        interrupted=interrupted,
+        checkpoint=checkpoint,
+        run_dir=run_dir,
+    )

@@ -1,0 +1,251 @@
+"""Training and matches in the server's host loop (elevens.robocup.train / play).
+
+Without a server, the loop runs on ``SimEnv``: the simulator behind RoboCupEnv's host-side
+contract (numpy in and out, the same info keys), which can also fake a server restart. The tests
+at the end use a real rcssserver when there is one.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import jax
+import numpy as np
+import pytest
+
+from elevens.cli import main
+from elevens.env.soccer import Soccer
+from elevens.robocup.play import load_robocup_team, play_robocup
+from elevens.robocup.train import EPISODES_CSV, RoboCupTrainConfig, play_iteration, train_robocup
+from elevens.train.trainer import make_trainer
+from tests.robocup.conftest import needs_rcssserver
+
+
+class SimEnv:
+    """RoboCupEnv's host contract on the simulator. ``restart_at``: the step whose result is a
+    faked server restart (a fresh episode, done, info["restarted"])."""
+
+    def __init__(self, players_per_team: int, restart_at: int | None = None) -> None:
+        self.players_per_team = players_per_team
+        self.env = Soccer(players_per_team)
+        self.params = self.env.default_params()
+        self.restart_at = restart_at
+        self._reset = jax.jit(self.env.reset)
+        self._step = jax.jit(self.env.step)
+        self._global = jax.jit(self.env.global_state)
+        self.key = jax.random.key(0)
+        self.steps = 0
+        self.closed = False
+        self.actions_seen: list[np.ndarray] = []
+
+    def reset(self, seed: int | None = None) -> tuple[Any, Any]:
+        self.key = jax.random.key(0 if seed is None else seed)
+        self.state, obs = self._reset(self.key, self.params)
+        self.steps = 0
+        return self.state, jax.tree.map(np.asarray, obs)
+
+    def step(self, actions: np.ndarray) -> tuple[Any, Any, np.ndarray, bool, dict[str, Any]]:
+        assert actions.shape == (2, self.players_per_team, 2) and np.isfinite(actions).all()
+        self.actions_seen.append(actions)
+        self.steps += 1
+        self.key, key = jax.random.split(self.key)
+        if self.restart_at is not None and self.steps == self.restart_at:
+            self.restart_at = None  # once
+            state, obs = self.reset(seed=99)
+            zeros = np.zeros((2, self.players_per_team), np.float32)
+            info = {"restarted": True, "goals": np.zeros(2, np.int32), "goal_reward": zeros,
+                    "ball_shaping": zeros, "approach_shaping": zeros, "missed": 0}
+            return state, obs, zeros, True, info
+        self.state, obs, rewards, done, step_info = self._step(
+            key, self.state, actions, self.params
+        )
+        info = {
+            "restarted": False,
+            "goals": np.asarray(step_info.goals),
+            "goal_reward": np.asarray(step_info.goal_reward),
+            "ball_shaping": np.asarray(step_info.ball_shaping),
+            "approach_shaping": np.asarray(step_info.approach_shaping),
+            "missed": 0,
+            "malformed": 0,
+        }
+        return self.state, jax.tree.map(np.asarray, obs), np.asarray(rewards), bool(done), info
+
+    def global_state(self, state: Any) -> Any:
+        return jax.tree.map(np.asarray, self._global(state, self.params))
+
+    def close(self) -> None:
+        self.closed = True
+
+
+def small_config(tmp_path: Path, **overrides: Any) -> RoboCupTrainConfig:
+    values: dict[str, Any] = dict(
+        players_per_team=1, servers=2, episode_length=12, iterations=2, minutes=None,
+        run_dir=str(tmp_path / "run"), checkpoint_every=1, threads=False,
+    )
+    values.update(overrides)
+    return RoboCupTrainConfig(**values)
+
+
+def test_config_rejects_bad_values_by_name() -> None:
+    with pytest.raises(ValueError, match="servers=0"):
+        RoboCupTrainConfig(servers=0)
+    with pytest.raises(ValueError, match="opponent='league'"):
+        RoboCupTrainConfig(opponent="league")
+    with pytest.raises(ValueError, match="learning_rate=-0.1"):
+        RoboCupTrainConfig(learning_rate=-0.1)
+
+
+def test_play_iteration_packs_a_rollout_like_the_compiled_one(tmp_path: Path) -> None:
+    config = small_config(tmp_path, players_per_team=2, episode_length=6)
+    trainer = make_trainer(config.train_config())
+    state = trainer.init(jax.random.key(0))
+    from elevens.robocup.train import make_actor
+
+    envs = [SimEnv(2), SimEnv(2, restart_at=3)]
+    data, logs = play_iteration(
+        envs, make_actor(trainer.policy), trainer.policy, state.params.policy,
+        state.params.policy, jax.random.key(1), episode_length=6, shaping_active=True, seed=0,
+    )
+    t = data.transitions
+    assert t.obs.self_features.shape == (4, 6, 15)
+    assert t.obs.entities.shape == (4, 6, 4, 11)
+    assert t.pre_tanh.shape == (4, 6, 2) and t.log_prob.shape == (4, 6)
+    assert data.game_global_state.players.shape == (2, 6, 4, 11)
+    assert np.asarray(data.learner_side).tolist() == [0, 1]
+    done, reset = np.asarray(t.done), np.asarray(t.reset)
+    # Episode ends: the last step everywhere, and the faked restart in game 1 (players 2, 3).
+    assert done[:, 5].all() and not done[:2, :5].any()
+    assert done[2:, 2].all() and not done[2:, [0, 1, 3, 4]].any()
+    # Starts: step 0 everywhere, and the step after the restart in game 1.
+    assert reset[:, 0].all() and reset[2:, 3].all() and not reset[:2, 1:].any()
+    assert logs[1].restarts == 1 and logs[0].restarts == 0
+    # The learner acted on side 1 in game 1: the actions there are its samples, squashed.
+    acted = np.stack(envs[1].actions_seen)[:, 1]  # [T, n, 2]
+    np.testing.assert_allclose(acted, np.tanh(np.asarray(t.pre_tanh[2:])).swapaxes(0, 1),
+                               atol=1e-5)
+    # The compiled learn accepts it.
+    learned = jax.jit(trainer.learn)(state.params, state.opt_state, data, jax.random.key(2))
+    assert np.isfinite(float(learned.update.metrics.total))
+
+
+def test_train_writes_episodes_checkpoints_and_resumes(tmp_path: Path) -> None:
+    envs: list[SimEnv] = []
+
+    def factory(index: int) -> SimEnv:
+        envs.append(SimEnv(1))
+        return envs[-1]
+
+    config = small_config(tmp_path)
+    lines: list[str] = []
+    result = train_robocup(config, env_factory=factory, print_fn=lines.append)
+    assert result.iterations == 2 and result.episodes == 4 and not result.interrupted
+    assert all(env.closed for env in envs)
+    run = tmp_path / "run"
+    with (run / EPISODES_CSV).open() as f:
+        rows = list(csv.DictReader(f))
+    assert [(r["iteration"], r["game"]) for r in rows] == [
+        ("1", "0"), ("1", "1"), ("2", "0"), ("2", "1")
+    ]
+    assert {r["steps"] for r in rows} == {"12"}
+    assert (run / "checkpoints" / "2").is_dir() and (run / "metrics.csv").exists()
+    assert json.loads((run / "robocup_config.json").read_text())["servers"] == 2
+    assert "robocup train 2:" in lines[-1]
+    # A second run into the same directory needs --resume, and then continues.
+    with pytest.raises(ValueError, match="resume"):
+        train_robocup(config, env_factory=factory)
+    more = small_config(tmp_path, iterations=3)
+    resumed = train_robocup(more, resume=True, env_factory=factory, print_fn=lines.append)
+    assert resumed.iterations == 3 and resumed.episodes == 2
+    assert (run / "checkpoints" / "3").is_dir()
+    # The checkpoint is a normal one: it loads as a team for the simulator and the server.
+    team = load_robocup_team(str(run), "sim")
+    assert team.name
+
+
+def test_ctrl_c_writes_a_checkpoint(tmp_path: Path) -> None:
+    class Interrupting(SimEnv):
+        def step(self, actions: np.ndarray) -> Any:
+            if self.steps == 4:
+                raise KeyboardInterrupt
+            return super().step(actions)
+
+    config = small_config(tmp_path, iterations=5)
+    result = train_robocup(config, env_factory=lambda i: Interrupting(1), print_fn=lambda _: None)
+    assert result.interrupted and result.iterations == 0
+    assert result.checkpoint is not None and result.checkpoint.is_dir()
+
+
+def test_play_handcrafted_teams_on_a_stand_in_env() -> None:
+    env = SimEnv(2)
+    lines: list[str] = []
+    results = play_robocup(
+        "naive", "random", episodes=1, action="sim", env=_Episode(env, 20), print_fn=lines.append
+    )
+    assert len(results) == 1 and results[0].steps == 20
+    assert lines[0].startswith("episode 0: naive")
+    with pytest.raises(ValueError, match="must be 'sim'"):
+        load_robocup_team("runs/some-checkpoint", "thesis12")
+    with pytest.raises(ValueError, match="episodes=0"):
+        play_robocup("naive", "random", episodes=0, env=_Episode(env, 5))
+
+
+class _Episode:
+    """Ends a SimEnv episode after ``length`` steps (RoboCupEnv's episode_length)."""
+
+    def __init__(self, env: SimEnv, length: int) -> None:
+        self.env, self.length, self.players_per_team = env, length, env.players_per_team
+
+    def reset(self, seed: int | None = None) -> Any:
+        return self.env.reset(seed)
+
+    def step(self, actions: np.ndarray) -> Any:
+        state, obs, rewards, _, info = self.env.step(actions)
+        return state, obs, rewards, self.env.steps >= self.length, info
+
+    def close(self) -> None:
+        self.env.close()
+
+
+def test_cli_says_how_to_install_a_missing_server(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.delenv("ELEVENS_RCSSSERVER", raising=False)
+    monkeypatch.setenv("PATH", "/nonexistent")
+    with pytest.raises(SystemExit) as exit_info:
+        main(["robocup", "bench", "--cycles", "10"])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert "rcssserver was not found" in err and "github.com/rcsoccersim/rcssserver" in err
+
+
+@needs_rcssserver
+def test_server_bench_reports_cycles_per_second(capsys: pytest.CaptureFixture[str]) -> None:
+    main(["robocup", "bench", "--players", "2", "--cycles", "200", "--json"])
+    result = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert result["cycles_per_s"] > 0 and result["missed"] == 0 and result["players"] == 4
+
+
+@needs_rcssserver
+def test_server_short_training_run(tmp_path: Path) -> None:
+    config = RoboCupTrainConfig(
+        players_per_team=1, servers=2, episode_length=20, iterations=2, minutes=None,
+        run_dir=str(tmp_path / "run"), rcssserver=os.environ.get("ELEVENS_RCSSSERVER"),
+    )
+    result = train_robocup(config, print_fn=lambda _: None)
+    assert result.iterations == 2 and result.restarts == 0
+    with (tmp_path / "run" / EPISODES_CSV).open() as f:
+        assert len(list(csv.DictReader(f))) == 4
+
+
+@needs_rcssserver
+def test_server_naive_plays_random() -> None:
+    results = play_robocup(
+        "naive", "random", players_per_team=1, episodes=1, episode_length=60,
+        action="thesis12", rcssserver=os.environ.get("ELEVENS_RCSSSERVER"),
+        print_fn=lambda _: None,
+    )
+    assert results[0].steps == 60 and results[0].restarts == 0

@@ -139,7 +139,8 @@ def test_unknown_field_or_group_lists_the_allowed_ones() -> None:
 
 def test_validate_catches_a_config_built_by_hand() -> None:
     config = make_config("quickstart")
-    bad_ppo = dataclasses.replace(config.ppo, learning_rate=-1.0)  # PPOHyperparams allows it
+    bad_ppo = dataclasses.replace(config.ppo)
+    object.__setattr__(bad_ppo, "learning_rate", -1.0)  # past PPOHyperparams' own check
     with pytest.raises(ValueError, match="ppo.learning_rate=-1.0"):
         validate(dataclasses.replace(config, ppo=bad_ppo))
     bad_env = EnvConfig(scenario="eleven")
@@ -153,7 +154,9 @@ def test_validation_is_fast_and_compiles_nothing() -> None:
     from elevens.train.trainer import make_trainer
 
     config = make_config("11v11")
-    bad = dataclasses.replace(config, ppo=dataclasses.replace(config.ppo, learning_rate=-1.0))
+    bad_ppo = dataclasses.replace(config.ppo)
+    object.__setattr__(bad_ppo, "learning_rate", -1.0)  # past PPOHyperparams' own check
+    bad = dataclasses.replace(config, ppo=bad_ppo)
     start = time.perf_counter()
     with pytest.raises(ValueError, match="learning_rate"):
         make_trainer(bad)
@@ -226,13 +229,19 @@ def test_cli_args_parse_a_preset_with_flag_overrides() -> None:
     assert bench.players == (1,) and bench.json
 
 
-def test_cli_train_validates_before_compiling() -> None:
+def test_cli_train_validates_before_compiling(capsys: pytest.CaptureFixture[str]) -> None:
     import tyro
 
     from elevens.train.cli_train import TrainArgs, train_command
 
-    args = tyro.cli(TrainArgs, args=["11v11", "--ppo.learning-rate", "-0.1"])
     start = time.perf_counter()
-    with pytest.raises(ValueError, match="ppo.learning_rate=-0.1"):
+    # PPOHyperparams refuses the value while tyro builds the config: usage error, exit code 2.
+    with pytest.raises(SystemExit) as exit_info:
+        train_command(tyro.cli(TrainArgs, args=["11v11", "--ppo.learning-rate", "-0.1"]))
+    assert exit_info.value.code == 2
+    assert "learning_rate=-0.1 is invalid" in capsys.readouterr().err
+    # A value only the whole config can judge is refused by validate() in train_command.
+    args = tyro.cli(TrainArgs, args=["11v11", "--run.games-per-iteration", "7"])
+    with pytest.raises(ValueError, match="games_per_iteration|minibatch|batch_size"):
         train_command(args)
     assert time.perf_counter() - start < 0.5

@@ -297,6 +297,9 @@ def test_hyperparams_defaults_and_validation() -> None:
     assert hp.advantage_estimator == "monte_carlo" and not hp.normalize_advantages
     with pytest.raises(ValueError, match="minibatch_size=70 does not divide batch_size=660"):
         PPOHyperparams(minibatch_size=70)
+    for bad in (0.0, -1e-4, float("nan")):
+        with pytest.raises(ValueError, match=f"learning_rate={bad!r} is invalid"):
+            PPOHyperparams(learning_rate=bad)
     with pytest.raises(ValueError, match="advantage_estimator"):
         PPOHyperparams(advantage_estimator="td")  # type: ignore[arg-type]
 

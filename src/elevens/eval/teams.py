@@ -26,9 +26,10 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
+from elevens.eval.play import HANDCRAFTED
 from elevens.teams.base import TeamPolicy
 
-HANDCRAFTED_NAMES: tuple[str, ...] = ("random", "naive", "teamwork")
+HANDCRAFTED_NAMES: tuple[str, ...] = tuple(HANDCRAFTED)  # one list of names: eval.play's
 CHECKPOINTS_SUBDIR = "checkpoints"
 """Where the trainer writes checkpoints inside a run directory (``trainer.CHECKPOINT_DIR``)."""
 NETWORK_TEAM_NAME = "network"

@@ -87,6 +87,10 @@ class PPOHyperparams:
                 f"advantage_estimator={self.advantage_estimator!r} is invalid: "
                 "allowed values are ('monte_carlo', 'gae')"
             )
+        if not self.learning_rate > 0:  # also catches NaN
+            raise ValueError(
+                f"learning_rate={self.learning_rate!r} is invalid: it must be a number > 0"
+            )
         if self.epochs < 1:
             raise ValueError(f"epochs={self.epochs!r} is invalid: it must be >= 1")
         if self.minibatch_size < 1 or self.batch_size < 1:

@@ -249,3 +249,23 @@ def test_server_naive_plays_random() -> None:
         print_fn=lambda _: None,
     )
     assert results[0].steps == 60 and results[0].restarts == 0
+
+
+def test_init_from_a_checkpoint_starts_from_its_networks(tmp_path: Path) -> None:
+    from elevens.robocup.train import load_source_params
+
+    source = small_config(tmp_path, iterations=1, run_dir=str(tmp_path / "source"))
+    train_robocup(source, env_factory=lambda i: SimEnv(1), print_fn=lambda _: None)
+    # No time to play: the run saves its starting point, which must be the source's networks.
+    target = small_config(
+        tmp_path, run_dir=str(tmp_path / "target"), init_from=str(tmp_path / "source"),
+        minutes=1e-9,
+    )
+    result = train_robocup(target, env_factory=lambda i: SimEnv(1), print_fn=lambda _: None)
+    assert result.iterations == 0
+    _, expected = load_source_params(str(tmp_path / "source"))
+    _, started = load_source_params(str(tmp_path / "target"))
+    for a, b in zip(jax.tree.leaves(expected), jax.tree.leaves(started), strict=True):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    with pytest.raises(FileNotFoundError, match="nothing-here does not exist"):
+        load_source_params(str(tmp_path / "target" / "nothing-here"))

@@ -58,9 +58,13 @@ def test_2v2_preset_documents_how_to_get_table_6_1_back() -> None:
             "ppo.minibatch_size": 60,
             "run.games_per_iteration": 330,
             "opponent.polyak_tau": 0.01,
+            "env.shaping_schedule": True,
         },
     )
     assert table.ppo == PPOHyperparams()
+    assert table.env == EnvConfig(
+        scenario="2v2", spawn="random", episode_length=400
+    )
     assert table.opponent == make_config("11v11").opponent
     tuned = make_config("2v2")
     assert tuned.ppo.advantage_estimator == "gae" and tuned.ppo.normalize_advantages

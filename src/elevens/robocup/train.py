@@ -335,18 +335,27 @@ def play_iteration(
     return rollout, logs
 
 
-def _load_initial_params(path: str, state: Any) -> Any:
-    """``state`` with the policy and critic of a simulator checkpoint (and the opponent copy)."""
-    from elevens.eval.teams import _checkpoint_directory
-    from elevens.train.checkpoint import Checkpointer
+def load_source_params(path: str) -> tuple[TrainConfig, Any]:
+    """(config, LearnerParams) of a simulator (or server) training checkpoint: a run,
+    checkpoints or step directory, optionally ``PATH@ITERATION``."""
+    from elevens.eval.teams import _checkpoint_directory, parse_team_spec
+    from elevens.train.checkpoint import Checkpointer, load_config
+    from elevens.train.trainer import make_trainer
 
-    directory, step = _checkpoint_directory(Path(path))
-    restored, _, _ = Checkpointer(directory).restore(state, step)
-    params = restored.params
-    opponent = state.opponent
-    if opponent.polyak is not None:
-        opponent = opponent.replace(polyak=opp.polyak_init(params.policy))
-    return state.replace(params=params, opponent=opponent)
+    spec = parse_team_spec(path)
+    if spec.path is None:
+        raise ValueError(f"init_from={path!r} is not a checkpoint path")
+    directory, path_step = _checkpoint_directory(spec.path)
+    step = spec.iteration if spec.iteration is not None else path_step
+    with Checkpointer(directory, max_to_keep=None) as checkpointer:
+        if step is None:
+            step = checkpointer.latest_step()
+            if step is None:
+                raise FileNotFoundError(f"init_from={path!r}: no checkpoint in {directory}")
+        source = TrainConfig.from_dict(load_config(directory, step))
+        target = jax.eval_shape(make_trainer(source).init, jax.random.key(0))
+        restored, _, _ = checkpointer.restore(target, step)
+    return source, restored.params
 
 
 def train_robocup(
@@ -366,6 +375,11 @@ def train_robocup(
 
     began = time.perf_counter()
     train_config = config.train_config()
+    source_params = None
+    if config.init_from is not None:
+        # The source's networks (their sizes and switches) carry over; PPO and the rest are ours.
+        source, source_params = load_source_params(config.init_from)
+        train_config = dataclasses.replace(train_config, network=source.network).validate()
     run_dir = Path(config.run_dir)
     checkpointer = Checkpointer(run_dir / "checkpoints", max_to_keep=3)
     latest = checkpointer.latest_step()
@@ -378,8 +392,15 @@ def train_robocup(
     state: TrainState = trainer.init(jax.random.key(config.seed))
     if latest is not None:
         state, _, _ = checkpointer.restore(state)
-    elif config.init_from is not None:
-        state = _load_initial_params(config.init_from, state)
+    elif source_params is not None:
+        polyak = state.opponent.polyak
+        assert polyak is not None
+        state = state.replace(
+            params=source_params,
+            opponent=state.opponent.replace(
+                polyak=polyak.replace(params=source_params.policy)
+            ),
+        )
     run_dir.mkdir(parents=True, exist_ok=True)
     (run_dir / "config.json").write_text(train_config.to_json(), encoding="utf-8")
     (run_dir / "robocup_config.json").write_text(

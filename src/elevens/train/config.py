@@ -315,12 +315,18 @@ def _two_v_two() -> TrainConfig:
     # (128 sequences in minibatches of 16: 8 Adam steps per epoch), Adam 5e-4, GAE(0.95) with
     # gamma 0.99 and standardised advantages (lower variance than 400-step Monte Carlo returns),
     # and a Polyak rate of 0.05 per iteration so the opponent trails by tens of iterations,
-    # not hundreds. Table 6.1 exactly: --ppo.learning-rate 1e-4 --ppo.advantage-estimator
-    # monte_carlo --ppo.gamma 0.999 --ppo.no-normalize-advantages --ppo.batch-size 660
+    # not hundreds. The shaping stays on: against a self-play opponent the learner passes the
+    # schedule's 75% scoring rate within about 20 iterations, long before it can hold its own
+    # against the naive team, and runs with shaping kept on beat naive sooner (measured: 0.065 v
+    # 0.025 after 60-70 iterations, goals against 2.7 v 3.8). Table 6.1 and section 4.2 exactly:
+    # --env.shaping-schedule --ppo.learning-rate 1e-4 --ppo.advantage-estimator monte_carlo
+    # --ppo.gamma 0.999 --ppo.no-normalize-advantages --ppo.batch-size 660
     # --ppo.minibatch-size 60 --run.games-per-iteration 330 --opponent.polyak-tau 0.01.
     return TrainConfig(
         preset="2v2",
-        env=EnvConfig(scenario="2v2", spawn="random", episode_length=400),
+        env=EnvConfig(
+            scenario="2v2", spawn="random", episode_length=400, shaping_schedule=False
+        ),
         ppo=PPOHyperparams(
             learning_rate=5e-4,
             batch_size=128,

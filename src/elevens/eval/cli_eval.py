@@ -136,10 +136,14 @@ class ViewArgs:
 # --------------------------------------------------------------------------------------------
 
 
-def _env(players: int, steps: int | None) -> tuple[Any, Any]:
+def _env(
+    players: int, steps: int | None, field: dict[str, float] | None = None
+) -> tuple[Any, Any]:
     import elevens
 
-    overrides = {} if steps is None else {"episode_length": steps}
+    overrides: dict[str, Any] = dict(field or {})
+    if steps is not None:
+        overrides["episode_length"] = steps
     return elevens.make(f"{players}v{players}", **overrides)
 
 
@@ -155,6 +159,20 @@ def _load_teams(specs: tuple[str, ...], players: int, deterministic: bool | None
     return [dc.replace(team, name=name) for team, name in zip(teams, names, strict=True)]
 
 
+def _teams_and_env(
+    groups: tuple[tuple[str, ...], ...], players: int, steps: int | None,
+    deterministic: bool | None,
+) -> tuple[list[list[Any]], Any, Any]:
+    """Load each group of team specs, and the game on the field the checkpoints trained on
+    (SPEC.md's when all are handcrafted), with the handcrafted teams told that field."""
+    from elevens.eval.teams import common_field, fit_to_field
+
+    loaded = [_load_teams(group, players, deterministic) for group in groups]
+    field = common_field([team for group in loaded for team in group])
+    env, params = _env(players, steps, field)
+    return [[fit_to_field(team, params) for team in group] for group in loaded], env, params
+
+
 def tournament_command(args: TournamentArgs) -> Any:
     """Play the round robin, print the table and ratings, write the files. Returns the
     ``Tournament``."""
@@ -167,8 +185,9 @@ def tournament_command(args: TournamentArgs) -> Any:
     if args.games < 1:
         raise ValueError(f"games={args.games} is invalid: it must be >= 1")
     console = Console()
-    env, params = _env(args.players, args.steps)
-    teams = _load_teams(args.teams, args.players, args.deterministic)
+    (teams,), env, params = _teams_and_env(
+        (args.teams,), args.players, args.steps, args.deterministic
+    )
     began = time.perf_counter()
 
     def on_match(index: int, total: int, home: str, away: str, result: Any) -> None:
@@ -215,9 +234,9 @@ def analyze_command(args: AnalyzeArgs) -> Any:
     if args.games < 1:
         raise ValueError(f"games={args.games} is invalid: it must be >= 1")
     console = Console()
-    env, params = _env(args.players, args.steps)
-    teams = _load_teams(args.teams, args.players, args.deterministic)
-    (opponent,) = _load_teams((args.against,), args.players, args.deterministic)
+    (teams, (opponent,)), env, params = _teams_and_env(
+        (args.teams, (args.against,)), args.players, args.steps, args.deterministic
+    )
     out = Path(args.out)
     rows = []
     for index, team in enumerate(teams):

@@ -72,6 +72,9 @@ class Team:
     """True if the params only fit a team of ``trained_players`` (the feedforward ablation)."""
     spec: str = ""
     """The spec it was loaded from."""
+    field: tuple[float, float, float] | None = None
+    """(field_length, field_width, goal_width) the checkpoint trained on; None for the
+    handcrafted teams, which play on any field they are told."""
 
 
 def parse_team_spec(text: str) -> TeamSpec:
@@ -253,7 +256,40 @@ def load_team(spec: str | TeamSpec, *, deterministic: bool | None = None) -> Tea
         trained_players=config.env.players_per_team,
         size_dependent=not config.network.use_attention,
         spec=parsed.text,
+        field=(config.env.field_length, config.env.field_width, config.env.goal_width),
     )
+
+
+FIELD_NAMES = ("field_length", "field_width", "goal_width")
+
+
+def common_field(teams: list[Team]) -> dict[str, float]:
+    """The EnvParams overrides of the field the checkpoints among ``teams`` trained on ({} when
+    none is a checkpoint). Raises ``ValueError`` naming the teams if they trained on different
+    fields: a match between them would put one of them on a field it never saw."""
+    fields = {team.field for team in teams if team.field is not None}
+    if len(fields) > 1:
+        listed = "; ".join(f"{team.name}: {team.field}" for team in teams if team.field)
+        raise ValueError(
+            "the checkpoints trained on different fields (length, width, goal): "
+            f"{listed}; compare checkpoints of one field"
+        )
+    if not fields:
+        return {}
+    (field,) = fields
+    return dict(zip(FIELD_NAMES, field, strict=True))
+
+
+def fit_to_field(team: Team, params: Any) -> Team:
+    """A handcrafted team told the field of ``params`` (checkpoints are returned as they are)."""
+    from elevens.eval.play import resolve_team
+
+    if team.field is not None or team.params is not None:
+        return team
+    name = parse_team_spec(team.spec).handcrafted if team.spec else None
+    if name is None:
+        return team
+    return dataclasses.replace(team, policy=resolve_team(name, params))
 
 
 def check_team_size(team: Team, players_per_team: int) -> None:

@@ -230,7 +230,9 @@ def test_resume_refuses_another_config_and_fresh_runs_refuse_old_dirs(tmp_path: 
 
 def test_ctrl_c_writes_a_checkpoint_and_the_run_can_continue(tmp_path: Path) -> None:
     config = tiny_config(
-        tmp_path, **{"run.iterations": 6, "run.checkpoint_every": 0, "run.eval_every": 0}
+        tmp_path,
+        **{"run.iterations": 6, "run.checkpoint_every": 0, "run.eval_every": 0,
+           "run.write_plot": True},
     )
     seen: list[int] = []
 
@@ -247,7 +249,9 @@ def test_ctrl_c_writes_a_checkpoint_and_the_run_can_continue(tmp_path: Path) -> 
     restored, _, _ = checkpointer.restore(result.state)
     assert leaves_equal(restored, result.state)
     assert "interrupted" in (tmp_path / "events.log").read_text()
-    assert "learning_curve" not in result.files  # an interrupted run skips the pictures
+    # An interrupted run draws its curve so far, but skips the final evaluation and the GIF.
+    assert result.files["learning_curve"].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "gif" not in result.files
     finished = train(config, resume=True, progress=False)
     assert finished.iteration == 6 and not finished.interrupted
 

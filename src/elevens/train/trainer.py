@@ -729,16 +729,16 @@ def train(
         if interrupted:
             logger.event(iteration, f"interrupted (Ctrl-C): checkpoint {checkpoint_path}")
         files = {"metrics_csv": logger.csv_path, "config": run_dir / CONFIG_JSON}
-        if not interrupted:
-            if evaluated_at != iteration:
-                evaluation = run_eval(state)
-            logger.flush()
-            if run.write_plot:
-                files["learning_curve"] = write_learning_curve(
-                    run_dir, run_dir / LEARNING_CURVE, title=_title(config)
-                )
-            if run.write_gif:
-                files["gif"] = write_gif(trainer, state, run_dir / GIF_NAME, seed=run.seed)
+        if not interrupted and evaluated_at != iteration:
+            evaluation = run_eval(state)
+        logger.flush()
+        if run.write_plot:
+            # Also after Ctrl-C: the curve so far is what a stopped run is checked by.
+            files["learning_curve"] = write_learning_curve(
+                run_dir, run_dir / LEARNING_CURVE, title=_title(config)
+            )
+        if not interrupted and run.write_gif:
+            files["gif"] = write_gif(trainer, state, run_dir / GIF_NAME, seed=run.seed)
     finally:
         bar.close()
         logger.close()

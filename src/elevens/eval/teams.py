@@ -175,12 +175,11 @@ def load_checkpoint_team(
     return team, params
 
 
-def _load_checkpoint(
-    path: Path, iteration: int | None, deterministic: bool | None
-) -> tuple[TeamPolicy, Any, Any]:
-    """(NetworkTeam, policy params, TrainConfig) of a checkpoint; see load_checkpoint_team."""
-    from elevens.nets.team import NetworkTeam
-    from elevens.train.checkpoint import Checkpointer, CheckpointError, load_config
+def _open_checkpoint(path: Path, iteration: int | None) -> tuple[Any, int, Any]:
+    """(open Checkpointer, step, TrainConfig) of the checkpoint ``path`` names (a run,
+    checkpoints or step directory; ``iteration`` None: the path's own step or the latest).
+    The caller closes the Checkpointer. Clear errors for a missing step or a foreign config."""
+    from elevens.train.checkpoint import Checkpointer, load_config
     from elevens.train.config import TrainConfig
 
     directory, path_step = _checkpoint_directory(path)
@@ -209,17 +208,45 @@ def _load_checkpoint(
                 f"checkpoint {directory / str(step)}: its config.json is not a TrainConfig of "
                 f"this version: {error}"
             ) from error
+    except BaseException:
+        checkpointer.close()
+        raise
+    return checkpointer, step, config
+
+
+def _restore_train_state(checkpointer: Any, step: int, config: Any) -> Any:
+    """The TrainState saved at ``step``, restored into the shapes ``config`` builds."""
+    from elevens.train.trainer import make_trainer
+
+    target = jax.eval_shape(make_trainer(config).init, jax.random.key(0))
+    state, _, _ = checkpointer.restore(target, step)
+    return state
+
+
+def load_train_state(path: Path, iteration: int | None = None) -> tuple[Any, Any]:
+    """(TrainConfig, TrainState) of a training checkpoint (see ``_open_checkpoint``)."""
+    checkpointer, step, config = _open_checkpoint(path, iteration)
+    try:
+        return config, _restore_train_state(checkpointer, step, config)
+    finally:
+        checkpointer.close()
+
+
+def _load_checkpoint(
+    path: Path, iteration: int | None, deterministic: bool | None
+) -> tuple[TeamPolicy, Any, Any]:
+    """(NetworkTeam, policy params, TrainConfig) of a checkpoint; see load_checkpoint_team."""
+    from elevens.nets.team import NetworkTeam
+    from elevens.train.checkpoint import CheckpointError
+
+    checkpointer, step, config = _open_checkpoint(path, iteration)
+    try:
         policy = config.network.policy()
         players = config.env.players_per_team
         errors = []
         policy_params = None
         try:
-            from elevens.train.trainer import make_trainer
-
-            trainer = make_trainer(config)
-            target = jax.eval_shape(trainer.init, jax.random.key(0))
-            state, _, _ = checkpointer.restore(target, step)
-            policy_params = state.params.policy
+            policy_params = _restore_train_state(checkpointer, step, config).params.policy
         except CheckpointError as error:
             errors.append(f"as a TrainState: {error}")
         if policy_params is None:
@@ -229,8 +256,8 @@ def _load_checkpoint(
                 errors.append(f"as policy variables: {error}")
         if policy_params is None:
             raise CheckpointError(
-                f"checkpoint {directory / str(step)} holds neither a TrainState nor policy "
-                "variables {'params': ...}: " + "; ".join(errors)
+                f"checkpoint {checkpointer.step_directory(step)} holds neither a TrainState "
+                "nor policy variables {'params': ...}: " + "; ".join(errors)
             )
     finally:
         checkpointer.close()

@@ -338,24 +338,13 @@ def play_iteration(
 def load_source_params(path: str) -> tuple[TrainConfig, Any]:
     """(config, LearnerParams) of a simulator (or server) training checkpoint: a run,
     checkpoints or step directory, optionally ``PATH@ITERATION``."""
-    from elevens.eval.teams import _checkpoint_directory, parse_team_spec
-    from elevens.train.checkpoint import Checkpointer, load_config
-    from elevens.train.trainer import make_trainer
+    from elevens.eval.teams import load_train_state, parse_team_spec
 
     spec = parse_team_spec(path)
     if spec.path is None:
         raise ValueError(f"init_from={path!r} is not a checkpoint path")
-    directory, path_step = _checkpoint_directory(spec.path)
-    step = spec.iteration if spec.iteration is not None else path_step
-    with Checkpointer(directory, max_to_keep=None) as checkpointer:
-        if step is None:
-            step = checkpointer.latest_step()
-            if step is None:
-                raise FileNotFoundError(f"init_from={path!r}: no checkpoint in {directory}")
-        source = TrainConfig.from_dict(load_config(directory, step))
-        target = jax.eval_shape(make_trainer(source).init, jax.random.key(0))
-        restored, _, _ = checkpointer.restore(target, step)
-    return source, restored.params
+    config, state = load_train_state(spec.path, spec.iteration)
+    return config, state.params
 
 
 def train_robocup(

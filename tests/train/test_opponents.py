@@ -25,6 +25,7 @@ from elevens.train.opponents import (
     polyak_update,
     ring_record,
     self_play_opponent,
+    single_opponent_step,
 )
 
 OPPONENT = {"a": jnp.array([1.0, 2.0]), "b": jnp.array(3.0)}
@@ -278,3 +279,18 @@ def test_league_functions_compile_together() -> None:
         league, probs = iteration_step(league, snapshot(9.0), jax.random.key(i), i * 10)
     assert int(league.size) == 4 and np.isclose(float(jnp.sum(probs)), 1.0)
     assert iteration_step._cache_size() == 1  # type: ignore[attr-defined]  # compiled once
+
+
+def test_single_opponent_step_by_kind() -> None:
+    start = polyak_init({"w": jnp.zeros(3)})
+    learner = {"w": jnp.ones(3)}
+    moved = single_opponent_step(start, "polyak", learner, 0.9, tau=0.5)
+    np.testing.assert_allclose(moved.params["w"], 0.5)
+    held = single_opponent_step(start, "polyak", learner, 0.5, tau=0.5)
+    np.testing.assert_allclose(held.params["w"], 0.0)
+    assert bool(held.frozen) and int(held.num_steps) == 1 and int(held.num_updates) == 0
+    latest = single_opponent_step(start, "self", learner, 0.0)
+    np.testing.assert_allclose(latest.params["w"], 1.0)
+    assert int(latest.num_updates) == 1 and int(latest.num_steps) == 1
+    with pytest.raises(ValueError, match="kind='league'"):
+        single_opponent_step(start, "league", learner, 0.5)

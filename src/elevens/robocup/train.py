@@ -449,13 +449,10 @@ def train_robocup(
             learned = learn(state.params, state.opt_state, data, shuffle_key)
             result = learned.update
             outcomes = opp.game_outcome(data.goals_for, data.goals_against)
-            if config.opponent == "polyak":
-                polyak = opp.polyak_step(
-                    polyak, result.params.policy, jnp.mean(outcomes),
-                    opponent_config.polyak_tau, opponent_config.freeze_threshold,
-                )
-            else:
-                polyak = polyak.replace(params=opp.self_play_opponent(result.params.policy))
+            polyak = opp.single_opponent_step(
+                polyak, config.opponent, result.params.policy, jnp.mean(outcomes),
+                opponent_config.polyak_tau, opponent_config.freeze_threshold,
+            )
             shaping = state.shaping
             if env_config.shaping_schedule:
                 shaping = shaping_update(

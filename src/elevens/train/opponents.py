@@ -129,6 +129,27 @@ def polyak_step(
     )
 
 
+def single_opponent_step(
+    state: PolyakState,
+    kind: str,
+    learner_params: Params,
+    learner_mean_score: ArrayLike,
+    tau: ArrayLike = POLYAK_TAU,
+    threshold: ArrayLike = POLYAK_THRESHOLD,
+) -> PolyakState:
+    """The opponent after a learner step, for the kinds with one opponent: "polyak"
+    (``polyak_step``) or "self" (the latest learner; counted as an update every step)."""
+    if kind == "polyak":
+        return polyak_step(state, learner_params, learner_mean_score, tau, threshold)
+    if kind == "self":
+        return state.replace(
+            params=self_play_opponent(learner_params),
+            num_updates=state.num_updates + 1,
+            num_steps=state.num_steps + 1,
+        )
+    raise ValueError(f"kind={kind!r} is invalid: a single opponent is 'polyak' or 'self'")
+
+
 # --------------------------------------------------------------------------------------------
 # Ring buffers (league results, and the shaping schedule's recent games)
 # --------------------------------------------------------------------------------------------

@@ -316,22 +316,15 @@ def _build_trainer(config: TrainConfig) -> Trainer:
         state: TrainState, policy_params: Params, outcomes: jax.Array, key: jax.Array
     ) -> OpponentState:
         opponent = state.opponent
-        if kind == "polyak":
+        if kind in ("polyak", "self"):
             assert opponent.polyak is not None
-            polyak = opp.polyak_step(
+            polyak = opp.single_opponent_step(
                 opponent.polyak,
+                kind,
                 policy_params,
                 jnp.mean(outcomes),
                 opponent_config.polyak_tau,
                 opponent_config.freeze_threshold,
-            )
-            return opponent.replace(polyak=polyak)
-        if kind == "self":
-            assert opponent.polyak is not None
-            polyak = opponent.polyak.replace(
-                params=opp.self_play_opponent(policy_params),
-                num_updates=opponent.polyak.num_updates + 1,
-                num_steps=opponent.polyak.num_steps + 1,
             )
             return opponent.replace(polyak=polyak)
         assert opponent.league is not None

@@ -37,7 +37,7 @@ from elevens.env.state import GlobalState, Observation
 from elevens.train import opponents as opp
 from elevens.train.config import TrainConfig, make_config
 from elevens.train.rollout import Rollout, Transition, learner_sides
-from elevens.train.shaping import shaping_update
+from elevens.train.shaping import shaping_scoring_rate, shaping_update
 
 log = logging.getLogger(__name__)
 
@@ -359,7 +359,6 @@ def train_robocup(
     checkpoint of ``run_dir``."""
     from elevens.train.checkpoint import Checkpointer
     from elevens.train.logging import RunLogger
-    from elevens.train.shaping import shaping_scoring_rate
     from elevens.train.trainer import TrainState, make_trainer
 
     began = time.perf_counter()

@@ -14,6 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from elevens.train import trainer as trainer_module
 from elevens.train.checkpoint import Checkpointer
 from elevens.train.config import TrainConfig, make_config
 from elevens.train.logging import read_metrics_csv
@@ -113,6 +114,44 @@ def test_update_chunk_runs_compiles_once_and_is_deterministic() -> None:
     # A rebuilt trainer for a run differing only in host-loop fields reuses the compiled chunk.
     other = make_trainer(tiny_config("elsewhere", **{"run.iterations": 9}))
     assert other.update_chunk is trainer.update_chunk
+
+
+def test_compacted_update_equals_the_dense_update(monkeypatch: pytest.MonkeyPatch) -> None:
+    # 4 v 4 is the smallest team that compacts. () is the dense trainer; (1.0,) always takes
+    # the compacted branch; (0.05,) never fits and falls back to the dense branch.
+    config = make_config(
+        "quickstart",
+        **{
+            **BASE,
+            "env.scenario": "4v4",
+            "env.episode_length": 8,
+            "run.games_per_iteration": 4,
+            "ppo.batch_size": 16,
+            "ppo.minibatch_size": 8,
+            "ppo.epochs": 2,
+        },
+    )
+    assert trainer_module._compacts(config)
+    updates = []
+    for fractions in ((), (1.0,), (0.05,)):
+        monkeypatch.setattr(trainer_module, "VISIBLE_FRACTIONS", fractions)
+        trainer_module._build_trainer.cache_clear()
+        trainer = make_trainer(config)
+        if not updates:  # one rollout for all three: the same init and data
+            state = trainer.init(jax.random.key(0))
+            data = jax.jit(trainer.collect)(state, jax.random.key(1))
+        learned = jax.jit(trainer.learn)(state.params, state.opt_state, data, jax.random.key(2))
+        updates.append(learned.update)
+    trainer_module._build_trainer.cache_clear()
+    dense = updates[0]
+    assert not leaves_equal(dense.params, state.params)
+    for update in updates[1:]:
+        for a, b in zip(
+            jax.tree.leaves((update.params, update.loss)),
+            jax.tree.leaves((dense.params, dense.loss)),
+            strict=True,
+        ):
+            np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-6)
 
 
 def test_polyak_freeze_rule_follows_the_mean_score() -> None:

@@ -27,15 +27,24 @@ FLOPs) on the whole ``[T, ...]`` sequence as one large batch, and scans only the
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
+from flax.linen.recurrent import DenseParams
 
 from elevens.env.state import Observation
-from elevens.nets.attention import FF2, Activation, AttentionPool
+from elevens.nets.attention import (
+    FF2,
+    Activation,
+    AttentionPool,
+    EntityGroups,
+    fits_capacity,
+    visible_compaction,
+)
 from elevens.nets.distributions import TanhGaussian, clamp_log_std
 
 NUM_ACTIONS = 2
@@ -68,11 +77,49 @@ def reset_carry(carry: PolicyCarry, reset: jax.Array) -> PolicyCarry:
     return jax.tree.map(lambda leaf: jnp.where(reset[..., None], 0.0, leaf), carry)
 
 
+class LSTMWeights(nn.Module):
+    """One LSTM layer's parameters, named and initialised exactly as ``nn.OptimizedLSTMCell``'s
+    (``ii``..``io`` input kernels, ``hi``..``ho`` hidden kernels with the biases), concatenated
+    in gate order (i, f, g, o): ``(input f32[d, 4H], hidden f32[H, 4H], bias f32[4H])``.
+    Checkpoints of either load into the other."""
+
+    features: int
+
+    @nn.compact
+    def __call__(self, input_size: int) -> tuple[jax.Array, jax.Array, jax.Array]:
+        inputs = jnp.zeros((1, input_size))
+        hidden = jnp.zeros((1, self.features))
+        kernels_i, kernels_h, biases = [], [], []
+        for gate in "ifgo":
+            kernel_i, _ = DenseParams(self.features, use_bias=False, name=f"i{gate}")(inputs)
+            kernel_h, bias = DenseParams(
+                self.features, kernel_init=nn.initializers.orthogonal(), name=f"h{gate}"
+            )(hidden)
+            assert bias is not None
+            kernels_i.append(kernel_i)
+            kernels_h.append(kernel_h)
+            biases.append(bias)
+        return (
+            jnp.concatenate(kernels_i, axis=-1),
+            jnp.concatenate(kernels_h, axis=-1),
+            jnp.concatenate(biases, axis=-1),
+        )
+
+
+def lstm_cell(pre_activation: jax.Array, cell: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """The LSTM update from the summed gate inputs f32[..., 4H] (gates i, f, g, o) and the old
+    cell f32[..., H] -> (cell, hidden), as ``nn.OptimizedLSTMCell`` computes it."""
+    i, f, g, o = jnp.split(pre_activation, 4, axis=-1)
+    cell = jax.nn.sigmoid(f) * cell + jax.nn.sigmoid(i) * jnp.tanh(g)
+    return cell, jax.nn.sigmoid(o) * jnp.tanh(cell)
+
+
 class RecurrentCore(nn.Module):
     """out_r: a stack of LSTM layers, or a feedforward block when ``use_lstm`` is False.
 
     (carry, x f32[..., d], reset bool[...]) -> (carry, y f32[..., lstm_features]). ``reset``
     zeroes the carry of those rows before it is used (the first step of an episode).
+    ``sequence`` runs T steps at once.
     """
 
     lstm_features: int = 32
@@ -84,19 +131,79 @@ class RecurrentCore(nn.Module):
     activation: Activation = nn.relu
     """Non-linearity of the feedforward replacement."""
 
-    @nn.compact
+    def setup(self) -> None:
+        if not self.use_lstm:
+            self.ff = FF2(self.lstm_features, activation=self.activation)
+            return
+        for layer in range(self.lstm_layers):
+            setattr(self, f"lstm_{layer}", LSTMWeights(self.lstm_features))
+
+    def _weights(self, input_size: int) -> list[tuple[jax.Array, jax.Array, jax.Array]]:
+        sizes = [input_size] + [self.lstm_features] * (self.lstm_layers - 1)
+        return [getattr(self, f"lstm_{layer}")(size) for layer, size in enumerate(sizes)]
+
     def __call__(
         self, carry: PolicyCarry, x: jax.Array, reset: jax.Array
     ) -> tuple[PolicyCarry, jax.Array]:
         if not self.use_lstm:
-            return carry, FF2(self.lstm_features, activation=self.activation, name="ff")(x)
+            return carry, self.ff(x)
         carry = reset_carry(carry, reset)
         new_carry = []
-        for layer, state in enumerate(carry):
-            cell = nn.OptimizedLSTMCell(self.lstm_features, name=f"lstm_{layer}")
-            (c, h), x = cell((state.cell, state.hidden), x)
-            new_carry.append(LSTMState(cell=c, hidden=h))
+        for (kernel_i, kernel_h, bias), state in zip(
+            self._weights(x.shape[-1]), carry, strict=True
+        ):
+            c, x = lstm_cell(x @ kernel_i + state.hidden @ kernel_h + bias, state.cell)
+            new_carry.append(LSTMState(cell=c, hidden=x))
         return tuple(new_carry), x
+
+    def sequence(
+        self, carry: PolicyCarry, x_seq: jax.Array, reset_seq: jax.Array
+    ) -> tuple[PolicyCarry, jax.Array]:
+        """T steps: x_seq f32[T, ..., d], reset_seq bool[T, ...] -> (carry after step T,
+        y f32[T, ..., lstm_features]); equals T calls.
+
+        Only what depends on the previous step is scanned. The first layer's input projection
+        runs on all T steps as one matmul before the scan, and each higher layer's input and
+        hidden projections are one matmul on ``[input, hidden]``. (1.6x faster to differentiate
+        than a scan of ``__call__``: 55 sequences of 100 steps, 2-core CPU.)
+        """
+        if not self.use_lstm:
+            return carry, self.ff(x_seq)
+        weights = self._weights(x_seq.shape[-1])
+        kernel_i, kernel_h, bias = weights[0]
+        projected = x_seq @ kernel_i + bias
+        stacked = [(jnp.concatenate([k_i, k_h], axis=0), b) for k_i, k_h, b in weights[1:]]
+
+        def step(carry: PolicyCarry, inputs: tuple[jax.Array, jax.Array]) -> Any:
+            pre_activation, reset = inputs
+            carry = reset_carry(carry, reset)
+            state = carry[0]
+            c, h = lstm_cell(pre_activation + state.hidden @ kernel_h, state.cell)
+            new_carry = [LSTMState(cell=c, hidden=h)]
+            for (kernel, b), state in zip(stacked, carry[1:], strict=True):
+                c, h = lstm_cell(jnp.concatenate([h, state.hidden], -1) @ kernel + b, state.cell)
+                new_carry.append(LSTMState(cell=c, hidden=h))
+            return tuple(new_carry), h
+
+        return jax.lax.scan(step, carry, (projected, reset_seq))
+
+
+def entity_groups(players_per_team: int) -> EntityGroups:
+    """The policy's entity columns by encoder: the n - 1 teammates, then the n opponents."""
+    n = players_per_team
+    return ((0, n - 1), (n - 1, 2 * n - 1))
+
+
+def visible_capacity_index(obs: Observation, fractions: Sequence[float]) -> jax.Array:
+    """i32[]: the index of the first of ``fractions`` (ascending) whose compaction holds every
+    visible teammate and opponent of obs (any leading axes, all rows together), or
+    ``len(fractions)`` where none does. With a 180 degree view about half the slots are
+    visible, so a compacted update does about half the per-entity work (``embed``)."""
+    num_slots = obs.entity_mask.shape[-1]
+    mask = obs.entity_mask[..., : num_slots - 1].reshape(-1, num_slots - 1)
+    groups = entity_groups(num_slots // 2)
+    misses = [~fits_capacity(mask, groups, fraction) for fraction in fractions]
+    return jnp.sum(jnp.stack([*misses, jnp.zeros((), bool)]).astype(jnp.int32))
 
 
 class AttentionPolicy(nn.Module):
@@ -143,8 +250,15 @@ class AttentionPolicy(nn.Module):
         zeros = jnp.zeros((*batch_shape, self.lstm_features), jnp.float32)
         return tuple(LSTMState(cell=zeros, hidden=zeros) for _ in range(self.lstm_layers))
 
-    def embed(self, obs: Observation) -> jax.Array:
-        """The memoryless part: Observation with leading axes [...] -> f32[..., d] for out_r."""
+    def embed(self, obs: Observation, visible_fraction: float | None = None) -> jax.Array:
+        """The memoryless part: Observation with leading axes [...] -> f32[..., d] for out_r.
+
+        ``visible_fraction`` (attention only): run the per-entity layers (encode_team_ff,
+        encode_opp_ff, value_opp_ff's value_ff) on the visible teammates and opponents only, at
+        most that share of each group's slots. The result equals the dense one (up to float
+        rounding) when they fit, which ``visible_capacity_index`` checks; slots beyond the
+        capacity would be dropped.
+        """
         num_slots = obs.entities.shape[-2]  # 2n: n - 1 teammates, n opponents, the ball
         n = num_slots // 2
         players = obs.entities[..., : num_slots - 1, :]  # the ball slot is left out
@@ -155,6 +269,21 @@ class AttentionPolicy(nn.Module):
             return self.encode_ff(jnp.concatenate([obs.self_features, flat], axis=-1))
         own = self.encode_ff(obs.self_features)
         query = self.query_ff(own)
+        if visible_fraction is not None:
+            # Per-entity layers on the visible slots only (see visible_capacity_index).
+            lead = visible.shape[:-1]
+            rows = math.prod(lead)
+            mask = visible.reshape(rows, num_slots - 1)
+            compaction = visible_compaction(mask, entity_groups(n), visible_fraction)
+            x = compaction.gather(players.reshape(rows, num_slots - 1, -1))
+            embeddings = jnp.concatenate(
+                [
+                    self.encode_team_ff(compaction.group(x, 0)),
+                    self.encode_opp_ff(compaction.group(x, 1)),
+                ]
+            )
+            attended = self.value_opp_ff(query.reshape(rows, -1), embeddings, mask, compaction)
+            return jnp.concatenate([own, attended.reshape(*lead, -1)], axis=-1)
         embeddings = jnp.concatenate(
             [
                 self.encode_team_ff(players[..., : n - 1, :]),
@@ -186,6 +315,7 @@ class AttentionPolicy(nn.Module):
         obs_seq: Observation,
         reset_seq: jax.Array,
         time_axis: int = 0,
+        visible_fraction: float | None = None,
     ) -> tuple[PolicyCarry, PolicyOutput]:
         """T steps: obs_seq with leading axes [T, ...], reset_seq bool[T, ...] ->
         (carry after step T, PolicyOutput with leading axes [T, ...]). Equals T calls of
@@ -193,18 +323,14 @@ class AttentionPolicy(nn.Module):
 
         ``time_axis=1`` takes and returns batch-major sequences ([B, T, ...]; carry [B, ...]):
         only the small LSTM input and output are transposed for the scan, not the observations.
+        ``visible_fraction``: see ``embed``.
         """
         if time_axis not in (0, 1):
             raise ValueError(f"time_axis={time_axis!r} is invalid: it must be 0 or 1")
-        x = self.embed(obs_seq)
+        x = self.embed(obs_seq, visible_fraction)
         if time_axis == 1:
             x, reset_seq = jnp.swapaxes(x, 0, 1), jnp.swapaxes(reset_seq, 0, 1)
-        scan = nn.scan(
-            lambda core, carry, inputs: core(carry, *inputs),
-            variable_broadcast="params",
-            split_rngs={"params": False},
-        )
-        carry, y = scan(self.out_r, carry, (x, reset_seq))
+        carry, y = self.out_r.sequence(carry, x, reset_seq)
         if time_axis == 1:
             y = jnp.swapaxes(y, 0, 1)
         return carry, self.head(y)

@@ -545,6 +545,8 @@ def update_epochs(
     *,
     epochs: int,
     num_minibatches: int,
+    value_and_grad_fn: Callable[[PyTree, PyTree], tuple[tuple[jax.Array, Metrics], PyTree]]
+    | None = None,
 ) -> UpdateResult:
     """Run ``epochs`` passes over ``batch`` in shuffled minibatches (nested ``lax.scan``).
 
@@ -559,6 +561,8 @@ def update_epochs(
         shuffle_key: one key; each epoch draws its own permutation from it.
         epochs: number of passes (5 in the thesis), static.
         num_minibatches: minibatches per epoch (11 in the thesis), static; must divide N.
+        value_and_grad_fn: ``jax.value_and_grad(loss_fn, has_aux=True)`` computed another way,
+            or None for exactly that (the trainer picks a cheaper policy pass per minibatch).
 
     Raises ``ValueError`` before tracing if ``num_minibatches`` does not divide N, or the leaves
     disagree on N. Jit this whole function with ``loss_fn``/``optimizer``/``epochs``/
@@ -568,7 +572,7 @@ def update_epochs(
         raise ValueError(f"epochs={epochs!r} is invalid: it must be an int >= 1")
     num_items = _batch_size(batch)
     _check_minibatches(num_items, num_minibatches)
-    grad_fn = jax.value_and_grad(loss_fn, has_aux=True)
+    grad_fn = value_and_grad_fn or jax.value_and_grad(loss_fn, has_aux=True)
 
     def minibatch_step(carry: _TrainCarry, minibatch: PyTree) -> tuple[_TrainCarry, _StepStats]:
         (loss, metrics), grads = grad_fn(carry.params, minibatch)

@@ -53,7 +53,7 @@ from elevens.env.soccer import Soccer
 from elevens.env.state import GlobalState, Observation
 from elevens.eval.play import resolve_team
 from elevens.nets.critic import AttentionCritic
-from elevens.nets.policy import AttentionPolicy, PolicyCarry
+from elevens.nets.policy import AttentionPolicy, PolicyCarry, visible_capacity_index
 from elevens.train import opponents as opp
 from elevens.train import ppo
 from elevens.train.config import (
@@ -212,6 +212,20 @@ def _computation_config(config: TrainConfig) -> TrainConfig:
     )
 
 
+VISIBLE_FRACTIONS = (0.6, 0.7, 0.8)
+"""Capacities (shares of the teammate and opponent slots) tried in turn for the policy's
+per-entity layers in the update: about half the slots are in the 180 degree view. A minibatch
+that fits none of them takes the dense pass, with the same result."""
+
+MIN_PLAYERS_TO_COMPACT = 4
+"""Below this many players a side the per-entity layers are too small a share of the update
+for compaction to pay for its gathers and its extra compiled branches."""
+
+
+def _compacts(config: TrainConfig) -> bool:
+    return config.network.use_attention and config.env.players_per_team >= MIN_PLAYERS_TO_COMPACT
+
+
 @functools.lru_cache(maxsize=8)
 def _build_trainer(config: TrainConfig) -> Trainer:
     env_config, run, hp = config.env, config.run, config.ppo
@@ -265,8 +279,12 @@ def _build_trainer(config: TrainConfig) -> Trainer:
         assert opponent.polyak is not None
         return opponent.polyak.params
 
-    def loss_fn(params: LearnerParams, batch: UpdateBatch) -> tuple[jax.Array, ppo.PPOLoss]:
-        """A minibatch of g whole games: leading [g, n, T] (see UpdateBatch)."""
+    def loss_fn(
+        params: LearnerParams, batch: UpdateBatch, visible_fraction: float | None = None
+    ) -> tuple[jax.Array, ppo.PPOLoss]:
+        """A minibatch of g whole games: leading [g, n, T] (see UpdateBatch).
+        ``visible_fraction``: the policy's per-entity layers on the visible slots only
+        (``AttentionPolicy.embed``); the caller checks that they fit."""
 
         def sequences(tree: Any) -> Any:  # [g, n, ...] -> [g * n, ...], games outermost
             return jax.tree.map(lambda x: x.reshape(-1, *x.shape[2:]), tree)
@@ -280,6 +298,7 @@ def _build_trainer(config: TrainConfig) -> Trainer:
             sequences(batch.obs),
             sequences(batch.reset),
             1,
+            visible_fraction,
             method=AttentionPolicy.unroll,
         )
         distribution = output.distribution()
@@ -298,6 +317,21 @@ def _build_trainer(config: TrainConfig) -> Trainer:
             hyperparams=hp,
         )
         return loss.total, loss
+
+    compaction_fractions = VISIBLE_FRACTIONS if _compacts(config) else ()
+
+    def value_and_grad(params: LearnerParams, batch: UpdateBatch) -> Any:
+        """The loss and its gradient; the policy pass uses the smallest compaction of the visible
+        entities that holds this minibatch's, or the dense pass where none does. Each branch
+        is a whole forward and backward pass, so nothing of the others is computed."""
+        branches = [
+            jax.value_and_grad(functools.partial(loss_fn, visible_fraction=fraction), has_aux=True)
+            for fraction in (*compaction_fractions, None)
+        ]
+        if len(branches) == 1:
+            return branches[0](params, batch)
+        index = visible_capacity_index(batch.obs, compaction_fractions)
+        return jax.lax.switch(index, branches, params, batch)
 
     def advantages(data: Rollout, values: jax.Array) -> tuple[jax.Array, jax.Array | None]:
         """(returns, advantages or None), each f32[U, T]. values f32[U, T] at rollout time."""
@@ -414,6 +448,7 @@ def _build_trainer(config: TrainConfig) -> Trainer:
             shuffle_key,
             epochs=hp.epochs,
             num_minibatches=hp.num_minibatches,
+            value_and_grad_fn=value_and_grad,
         )
         return Learned(update=update, values=values, returns=returns)
 

@@ -1,6 +1,7 @@
 """The policy's per-entity layers on the visible entities only (``visible_compaction`` and the
 compacted ``AttentionPolicy.embed``): the same outputs and gradients as the dense pass, the
-capacity checks that guard it, and the LSTM that ``unroll`` runs over whole sequences."""
+capacity checks that guard it; and the other update speedups, the blockwise weight gradient and
+the LSTM that ``unroll`` runs over whole sequences."""
 
 from __future__ import annotations
 
@@ -13,9 +14,11 @@ import numpy as np
 import pytest
 
 from elevens.nets.attention import (
+    WEIGHT_GRADIENT_CHUNK,
     VisibleCompaction,
     fits_capacity,
     group_capacity,
+    rows_dot_general,
     visible_compaction,
 )
 from elevens.nets.policy import (
@@ -74,7 +77,6 @@ def test_custom_gradients_equal_those_of_plain_indexing() -> None:
     rng = np.random.default_rng(4)
     per_observer = jnp.asarray(rng.standard_normal((6, 3)), jnp.float32)
     compact = jnp.asarray(rng.standard_normal((compaction.order.size, 3)), jnp.float32)
-    weights = jnp.asarray(rng.standard_normal((64, 3)), jnp.float32)
 
     def plain_scatter(y: jax.Array) -> jax.Array:  # jnp indexing, differentiated by JAX
         return jnp.concatenate([y, jnp.zeros((1, 3))])[compaction.slot]
@@ -84,7 +86,11 @@ def test_custom_gradients_equal_those_of_plain_indexing() -> None:
         return jnp.concatenate([per_slot, jnp.zeros((1, 3))])[compaction.order]
 
     def loss(fn):  # noqa: ANN001, ANN202
-        return jax.grad(lambda a: jnp.sum(jnp.sin(fn(a)) * weights[: fn(a).shape[0]]))
+        def weighted(a: jax.Array) -> jax.Array:
+            y = fn(a)
+            return jnp.sum(jnp.sin(y) * jnp.cos(jnp.arange(y.size).reshape(y.shape)))
+
+        return jax.grad(weighted)
 
     np.testing.assert_allclose(
         loss(compaction.scatter)(compact), loss(plain_scatter)(compact), atol=1e-6
@@ -192,3 +198,23 @@ def test_recurrent_core_is_optimized_lstm_cell_in_params_and_steps() -> None:
     np.testing.assert_allclose(y, reference_y, atol=1e-6)
     for a, b in zip(jax.tree.leaves(new_carry), jax.tree.leaves(reference_carry), strict=True):
         np.testing.assert_allclose(a, b, atol=1e-6)
+
+
+@pytest.mark.parametrize("rows", [4 * WEIGHT_GRADIENT_CHUNK, 3 * WEIGHT_GRADIENT_CHUNK, 1000])
+def test_blockwise_weight_gradient_equals_the_plain_one(rows: int) -> None:
+    # 4 blocks or more take the blockwise path; fewer, or a row count that is not a multiple of
+    # the block, the plain dot_general. Both must give Dense's values and gradients.
+    rng = np.random.default_rng(rows)
+    x = jnp.asarray(rng.standard_normal((rows, 6)), jnp.float32)
+    kernel = jnp.asarray(rng.standard_normal((6, 5)), jnp.float32)
+
+    def loss(dot_general):  # noqa: ANN001, ANN202
+        def value(x: jax.Array, kernel: jax.Array) -> jax.Array:
+            y = dot_general(x, kernel, (((1,), (0,)), ((), ())))
+            return jnp.sum(jnp.tanh(y) * jnp.cos(jnp.arange(y.size).reshape(y.shape)))
+
+        return jax.value_and_grad(value, argnums=(0, 1))(x, kernel)
+
+    blockwise, plain = loss(rows_dot_general), loss(jax.lax.dot_general)
+    for a, b in zip(jax.tree.leaves(blockwise), jax.tree.leaves(plain), strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-4)

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import flax.linen as nn
 import jax
@@ -54,11 +54,74 @@ class FF2(nn.Module):
     def __call__(self, x: jax.Array) -> jax.Array:
         lead = x.shape[:-1]
         x = flat_rows(x)
-        x = self.activation(nn.Dense(self.features, name="hidden")(x))
+        x = self.activation(
+            nn.Dense(self.features, dot_general=rows_dot_general, name="hidden")(x)
+        )
         out_features = self.features if self.out_features is None else self.out_features
-        x = nn.Dense(out_features, kernel_init=self.kernel_init_final, name="out")(x)
+        x = nn.Dense(
+            out_features,
+            kernel_init=self.kernel_init_final,
+            dot_general=rows_dot_general,
+            name="out",
+        )(x)
         x = self.activation(x) if self.activate_final else x
         return x.reshape(*lead, x.shape[-1])
+
+
+WEIGHT_GRADIENT_CHUNK = 512
+"""Rows per partial product of a Dense layer's weight gradient (``rows_dot_general``)."""
+
+
+@jax.custom_vjp
+def _rows_matmul(x: jax.Array, kernel: jax.Array) -> jax.Array:
+    return x @ kernel
+
+
+def _rows_matmul_fwd(
+    x: jax.Array, kernel: jax.Array
+) -> tuple[jax.Array, tuple[jax.Array, jax.Array]]:
+    return x @ kernel, (x, kernel)
+
+
+def _rows_matmul_bwd(
+    residuals: tuple[jax.Array, jax.Array], grad: jax.Array
+) -> tuple[jax.Array, jax.Array]:
+    x, kernel = residuals
+    chunks = x.shape[0] // WEIGHT_GRADIENT_CHUNK
+    # x^T grad as a sum of partial products over blocks of rows: 1.2x faster on the 2-core CPU
+    # than one product contracting all rows (80k rows of 64, 11 v 11 update shapes).
+    partial = jnp.einsum(
+        "cri,cro->cio",
+        x.reshape(chunks, WEIGHT_GRADIENT_CHUNK, x.shape[1]),
+        grad.reshape(chunks, WEIGHT_GRADIENT_CHUNK, grad.shape[1]),
+    )
+    return grad @ kernel.T, jnp.sum(partial, axis=0)
+
+
+_rows_matmul.defvjp(_rows_matmul_fwd, _rows_matmul_bwd)
+
+
+def rows_dot_general(
+    lhs: jax.Array, rhs: jax.Array, dimension_numbers: Any, precision: Any = None,
+    preferred_element_type: Any = None,
+) -> jax.Array:
+    """``lax.dot_general`` for ``nn.Dense(dot_general=...)``: a Dense on many rows (a multiple
+    of ``WEIGHT_GRADIENT_CHUNK``, at least 4 of them) computes its weight gradient blockwise;
+    anything else is the plain dot_general."""
+    rows_times_kernel = (((1,), (0,)), ((), ()))
+    if (
+        lhs.ndim == 2
+        and dimension_numbers == rows_times_kernel
+        and lhs.shape[0] % WEIGHT_GRADIENT_CHUNK == 0
+        and lhs.shape[0] >= 4 * WEIGHT_GRADIENT_CHUNK
+        and precision is None
+        and preferred_element_type is None
+    ):
+        return _rows_matmul(lhs, rhs)
+    return jax.lax.dot_general(
+        lhs, rhs, dimension_numbers, precision=precision,
+        preferred_element_type=preferred_element_type,
+    )
 
 
 def flat_rows(x: jax.Array) -> jax.Array:
@@ -91,7 +154,9 @@ class ConditionedFF2(nn.Module):
         compaction: VisibleCompaction | None = None,
     ) -> jax.Array:
         lead = entities.shape[:-1]  # [..., E], or [C] when compacted
-        entity_part = nn.Dense(self.features, name="hidden_entity")(flat_rows(entities))
+        entity_part = nn.Dense(
+            self.features, dot_general=rows_dot_general, name="hidden_entity"
+        )(flat_rows(entities))
         condition_part = nn.Dense(self.features, use_bias=False, name="hidden_condition")(
             flat_rows(condition)
         )
@@ -101,7 +166,7 @@ class ConditionedFF2(nn.Module):
             rows = math.prod(lead[:-1])  # explicit: -1 is ambiguous when E == 0
             x = entity_part.reshape(rows, lead[-1], self.features) + condition_part[:, None, :]
         x = self.activation(x).reshape(-1, self.features)
-        x = self.activation(nn.Dense(self.features, name="out")(x))
+        x = self.activation(nn.Dense(self.features, dot_general=rows_dot_general, name="out")(x))
         return x.reshape(*lead, self.features)
 
 
@@ -302,10 +367,14 @@ EntityGroups = tuple[tuple[int, int], ...]
 
 def group_capacity(rows: int, width: int, fraction: float) -> int:
     """Compact rows kept for a group of ``width`` columns over ``rows`` observers: ``fraction``
-    of its slots, rounded up to a multiple of 8 (0 for an empty group)."""
+    of its slots, rounded up to a multiple of 8 (0 for an empty group), or of
+    ``WEIGHT_GRADIENT_CHUNK`` for groups large enough that the per-entity layers compute their
+    weight gradients blockwise (``rows_dot_general``)."""
     if not 0.0 < fraction <= 1.0:
         raise ValueError(f"fraction={fraction!r} is invalid: it must be in (0, 1]")
-    return 8 * math.ceil(fraction * rows * width / 8)
+    wanted = fraction * rows * width
+    multiple = WEIGHT_GRADIENT_CHUNK if wanted >= 4 * WEIGHT_GRADIENT_CHUNK else 8
+    return multiple * math.ceil(wanted / multiple)
 
 
 def fits_capacity(mask: jax.Array, groups: EntityGroups, fraction: float) -> jax.Array:

@@ -216,18 +216,31 @@ class MaskedMultiHeadAttention(nn.Module):
         values = values.reshape(rows, num_entities, width)
         mask = mask.reshape(rows, num_entities)
         # Per observer: the query of each head, mapped back into value space through W_k.
-        head_queries = jnp.einsum("mw,whd->mhd", query, query_kernel) + query_bias
-        probes = jnp.einsum("mhd,whd->mhw", head_queries, key_kernel) / math.sqrt(head_size)
+        heads_count = self.num_heads
+        head_queries = query @ query_kernel.reshape(width, width) + query_bias.reshape(-1)
+        # Per-head products as one 2-D matmul with a block-diagonal matrix (heads x 4 the
+        # FLOPs of these small per-observer products, but no transposing copies).
+        probes = (
+            head_queries @ _block_diagonal(jnp.swapaxes(key_kernel, 0, 2))  # [h*d, h*w]
+        ).reshape(rows, heads_count, width) / math.sqrt(head_size)
         # Per (observer, entity): one dot product per head. The [m, E, H] layout of the scores
         # measured 1.1 to 1.5x faster on CPU than [m, H, E] (forward and gradient).
         scores = jnp.einsum("mew,mhw->meh", values, probes)
         weights, any_visible = masked_softmax(scores, mask[..., None], axis=-2)
         pooled = jnp.einsum("meh,mew->mhw", weights, values)
         # Back per observer: the value and output projections of each head.
-        heads = jnp.einsum("mhw,whd->mhd", pooled, value_kernel) + value_bias
-        out = jnp.einsum("mhd,hdw->mw", heads, out_kernel) + out_bias
+        heads = pooled.reshape(rows, -1) @ _block_diagonal(value_kernel) + value_bias.reshape(-1)
+        out = heads @ out_kernel.reshape(-1, width) + out_bias
         out = jnp.where(any_visible[:, 0, :1], out, 0.0)
         return out.reshape(*lead, width)
+
+
+def _block_diagonal(kernel: jax.Array) -> jax.Array:
+    """Per-head kernels f32[a, H, b] -> the block-diagonal f32[H * a, H * b] whose block h is
+    ``kernel[:, h, :]``: row vectors laid out head by head times it apply each head's kernel."""
+    a, heads, b = kernel.shape
+    eye = jnp.eye(heads, dtype=kernel.dtype)
+    return jnp.einsum("ahb,hg->hagb", kernel, eye).reshape(heads * a, heads * b)
 
 
 def masked_softmax(

@@ -218,8 +218,9 @@ class MaskedMultiHeadAttention(nn.Module):
         # Per observer: the query of each head, mapped back into value space through W_k.
         heads_count = self.num_heads
         head_queries = query @ query_kernel.reshape(width, width) + query_bias.reshape(-1)
-        # Per-head products as one 2-D matmul with a block-diagonal matrix (heads x 4 the
-        # FLOPs of these small per-observer products, but no transposing copies).
+        # Per-head products as one 2-D matmul with a block-diagonal matrix: num_heads times
+        # the FLOPs of these small per-observer products, but no transposing copies (the
+        # 11 v 11 training iteration measured 1.1x faster than with per-head einsums).
         probes = (
             head_queries @ _block_diagonal(jnp.swapaxes(key_kernel, 0, 2))  # [h*d, h*w]
         ).reshape(rows, heads_count, width) / math.sqrt(head_size)

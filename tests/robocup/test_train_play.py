@@ -7,9 +7,15 @@ at the end use a real rcssserver when there is one.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import os
+import re
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -269,3 +275,40 @@ def test_init_from_a_checkpoint_starts_from_its_networks(tmp_path: Path) -> None
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     with pytest.raises(FileNotFoundError, match="nothing-here does not exist"):
         load_source_params(str(tmp_path / "target" / "nothing-here"))
+
+
+@needs_rcssserver
+def test_sigterm_stops_the_servers_a_command_started(tmp_path: Path) -> None:
+    command = [sys.executable, "-c", "from elevens.cli import main; main()"]
+    process = subprocess.Popen(
+        [*command, "robocup", "serve", "--servers", "1"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    try:
+        assert process.stdout is not None
+        line = process.stdout.readline()  # "rcssserver pid N: ..." once it is ready
+        match = re.match(r"rcssserver pid (\d+):", line)
+        assert match, line
+        server_pid = int(match.group(1))
+        os.kill(server_pid, 0)  # running
+        process.send_signal(signal.SIGTERM)
+        assert process.wait(timeout=30) == 0
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline and _running(server_pid):
+            time.sleep(0.1)
+        assert not _running(server_pid)
+    finally:
+        process.kill()
+
+
+def _running(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    # A zombie (exited, not yet reaped by its parent) counts as stopped.
+    with contextlib.suppress(OSError):
+        return "Z" not in Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0]
+    return True

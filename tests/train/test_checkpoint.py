@@ -133,7 +133,8 @@ def test_round_trip_is_bit_identical(tmp_path: Path) -> None:
     step_dir = checkpointer.save(3, state, CONFIG, metadata)
     assert step_dir == tmp_path / "ckpt" / "3"
 
-    restored, config, meta = Checkpointer(tmp_path / "ckpt").restore(zeros_like_state(state))
+    with Checkpointer(tmp_path / "ckpt") as reader:
+        restored, config, meta = reader.restore(zeros_like_state(state))
     assert_bit_identical(restored, state)
     assert config == CONFIG
     assert meta == metadata
@@ -281,8 +282,9 @@ def test_damaged_array_file_is_a_checkpoint_error(
         data_file.unlink()
     before = files_under(directory)
 
-    with pytest.raises(CheckpointError) as error:
-        Checkpointer(directory).restore(zeros_like_state(state))
+    # Closed on the way out: else Orbax's event loop is left to the garbage collector (a warning).
+    with Checkpointer(directory) as reader, pytest.raises(CheckpointError) as error:
+        reader.restore(zeros_like_state(state))
     assert str(directory / "5") in str(error.value)
     assert files_under(directory) == before  # nothing deleted or rewritten
     assert checkpointer.latest_step() == 5

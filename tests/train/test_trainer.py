@@ -100,6 +100,7 @@ def test_update_chunk_runs_compiles_once_and_is_deterministic() -> None:
         "train/policy_loss", "train/value_loss", "train/entropy", "train/approx_kl",
         "train/clip_fraction", "train/explained_variance", "train/mean_score",
         "train/goals_for", "train/goals_against", "env/shaping_active", "opponent/frozen",
+        "train/visible_share",
     ):
         assert metrics[name].shape == (k,), name
         assert np.all(np.isfinite(np.asarray(metrics[name]))), name

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import signal
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -126,6 +127,21 @@ def main(argv: list[str] | None = None) -> None:
     if len(argv) >= 2 and argv[0] in ("bench", "robocup") and not argv[1].startswith("-"):
         argv = [f"{argv[0]}-{argv[1]}", *argv[2:]]
     args = tyro.cli(Command, args=argv, prog="elevens")
+    # SIGTERM (kill, a job scheduler) takes Ctrl-C's path: a training run (simulator or
+    # RoboCup) writes its checkpoint, and every rcssserver a command started is stopped.
+    # SIGKILL cannot be caught.
+    previous = signal.signal(signal.SIGTERM, _interrupt)
+    try:
+        _run(args)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt(f"signal {signum}")
+
+
+def _run(args: object) -> None:
     if isinstance(args, PlayArgs):
         play(args)
     elif isinstance(args, EnvBenchArgs):

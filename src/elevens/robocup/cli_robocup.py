@@ -7,7 +7,6 @@ it is missing it says so and how to install it (``elevens.robocup.server.INSTALL
 from __future__ import annotations
 
 import json as json_lib
-import signal
 import sys
 import time
 from dataclasses import asdict, dataclass
@@ -203,22 +202,12 @@ def bench(args: RoboCupBenchArgs) -> None:
     )
 
 
-def _interrupt(signum: int, frame: object) -> None:
-    raise KeyboardInterrupt(f"signal {signum}")
-
-
 def run_robocup_command(args: RoboCupArgs) -> None:
-    # SIGTERM (kill, a job scheduler) takes Ctrl-C's path: a training run checkpoints, and
-    # every rcssserver it started is stopped. (SIGKILL cannot be caught: its servers stay.)
-    previous = signal.signal(signal.SIGTERM, _interrupt)
-    try:
-        if isinstance(args, RoboCupServeArgs):
-            serve(args)
-        elif isinstance(args, RoboCupPlayArgs):
-            play(args)
-        elif isinstance(args, RoboCupTrainArgs):
-            train(args)
-        else:
-            bench(args)
-    finally:
-        signal.signal(signal.SIGTERM, previous)
+    if isinstance(args, RoboCupServeArgs):
+        serve(args)
+    elif isinstance(args, RoboCupPlayArgs):
+        play(args)
+    elif isinstance(args, RoboCupTrainArgs):
+        train(args)
+    else:
+        bench(args)

@@ -77,7 +77,7 @@ def train_command(args: TrainArgs) -> Any:
 
     config = args.config.validate()
     result = train(config, resume=args.resume, progress=args.progress)
-    state = "interrupted (Ctrl-C)" if result.interrupted else "done"
+    state = "interrupted (Ctrl-C or SIGTERM)" if result.interrupted else "done"
     print(
         f"{state}: {result.iteration} iterations, {result.env_steps:,} env steps in "
         f"{result.wall_s / 60:.1f} min"

@@ -758,7 +758,9 @@ def train(
             interrupted = True
         checkpoint_path = save(state)
         if interrupted:
-            logger.event(iteration, f"interrupted (Ctrl-C): checkpoint {checkpoint_path}")
+            logger.event(
+                iteration, f"interrupted (Ctrl-C or SIGTERM): checkpoint {checkpoint_path}"
+            )
         files = {"metrics_csv": logger.csv_path, "config": run_dir / CONFIG_JSON}
         if not interrupted and evaluated_at != iteration:
             evaluation = run_eval(state)

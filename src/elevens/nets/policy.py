@@ -145,16 +145,8 @@ class RecurrentCore(nn.Module):
     def __call__(
         self, carry: PolicyCarry, x: jax.Array, reset: jax.Array
     ) -> tuple[PolicyCarry, jax.Array]:
-        if not self.use_lstm:
-            return carry, self.ff(x)
-        carry = reset_carry(carry, reset)
-        new_carry = []
-        for (kernel_i, kernel_h, bias), state in zip(
-            self._weights(x.shape[-1]), carry, strict=True
-        ):
-            c, x = lstm_cell(x @ kernel_i + state.hidden @ kernel_h + bias, state.cell)
-            new_carry.append(LSTMState(cell=c, hidden=x))
-        return tuple(new_carry), x
+        carry, y = self.sequence(carry, x[None], reset[None])
+        return carry, y[0]
 
     def sequence(
         self, carry: PolicyCarry, x_seq: jax.Array, reset_seq: jax.Array

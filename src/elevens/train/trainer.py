@@ -319,19 +319,20 @@ def _build_trainer(config: TrainConfig) -> Trainer:
         return loss.total, loss
 
     compaction_fractions = VISIBLE_FRACTIONS if _compacts(config) else ()
+    # One whole forward and backward pass per capacity, then the dense one.
+    value_and_grad_branches = [
+        jax.value_and_grad(functools.partial(loss_fn, visible_fraction=fraction), has_aux=True)
+        for fraction in (*compaction_fractions, None)
+    ]
 
     def value_and_grad(params: LearnerParams, batch: UpdateBatch) -> Any:
         """The loss and its gradient; the policy pass uses the smallest compaction of the visible
-        entities that holds this minibatch's, or the dense pass where none does. Each branch
-        is a whole forward and backward pass, so nothing of the others is computed."""
-        branches = [
-            jax.value_and_grad(functools.partial(loss_fn, visible_fraction=fraction), has_aux=True)
-            for fraction in (*compaction_fractions, None)
-        ]
-        if len(branches) == 1:
-            return branches[0](params, batch)
+        entities that holds this minibatch's, or the dense pass where none does. Only the branch
+        taken is computed."""
+        if not compaction_fractions:
+            return value_and_grad_branches[0](params, batch)
         index = visible_capacity_index(batch.obs, compaction_fractions)
-        return jax.lax.switch(index, branches, params, batch)
+        return jax.lax.switch(index, value_and_grad_branches, params, batch)
 
     def advantages(data: Rollout, values: jax.Array) -> tuple[jax.Array, jax.Array | None]:
         """(returns, advantages or None), each f32[U, T]. values f32[U, T] at rollout time."""

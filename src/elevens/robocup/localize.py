@@ -322,11 +322,10 @@ def _fit(
         )
         line_data.append((axis, coord, s_obs, d * math.cos(s_obs), sd_p))
 
-    cov = None
-    for _ in range(6):
-        # Residuals at the pose: range rho - d and the angle of dz turned by -(th + seen
-        # direction), which is the bearing residual, already in [-pi, pi]; both over
-        # their noise. Then the Jacobian.
+    def landmark_residuals(x: float, y: float, th: float) -> tuple[np.ndarray, np.ndarray]:
+        """Into r_range and r_bear, the residuals at the pose: range rho - d and the angle of
+        dz turned by -(th + seen direction), which is the bearing residual, already in
+        [-pi, pi]; both over their noise. Returns dz (landmark - position) and rho."""
         dz = glob - complex(x, y)
         rho = np.abs(dz)
         np.maximum(rho, _MIN_RHO, out=rho)
@@ -335,6 +334,12 @@ def _fit(
         turned = dz * (unrot * complex(math.cos(th), -math.sin(th)))
         np.arctan2(turned.imag, turned.real, out=r_bear)
         np.multiply(r_bear, w_b, out=r_bear)
+        return dz, rho
+
+    cov = None
+    for _ in range(6):
+        # The residuals at the pose, then the Jacobian.
+        dz, rho = landmark_residuals(x, y, th)
         np.multiply(dz, neg_inv_sd_r / rho, out=j_range)
         np.multiply(j_range, k_bear / rho, out=j_bear)
         # [J'J | J'r], rows 0-2 (row 3 holds J'r and r'r again)
@@ -400,14 +405,7 @@ def _fit(
         lin = np.dot(jac, (dx, dy, dth, 1.0))
         lin_range, lin_bear = lin[:n], lin[n:]
     else:  # evaluate anew (as in the loop)
-        dz = glob - complex(x, y)
-        rho = np.abs(dz)
-        np.maximum(rho, _MIN_RHO, out=rho)
-        np.subtract(rho, dist, out=r_range)
-        np.divide(r_range, sd_r, out=r_range)
-        turned = dz * (unrot * complex(math.cos(th), -math.sin(th)))
-        np.arctan2(turned.imag, turned.real, out=r_bear)
-        np.multiply(r_bear, w_b, out=r_bear)
+        landmark_residuals(x, y, th)
         lin, lin_range, lin_bear = res, r_range, r_bear
     sq = float(np.dot(lin, lin))
     line_z = []

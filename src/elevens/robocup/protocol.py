@@ -1932,6 +1932,17 @@ def _fast_see(text: str) -> SeeMessage | None:
         return None
 
 
+_PLAYER_FIELDS_BY_COUNT = {
+    1: ("direction",),
+    2: ("distance", "direction"),
+    3: ("distance", "direction", "point_dir"),
+    4: ("distance", "direction", "dist_change", "dir_change"),
+    6: ("distance", "direction", "dist_change", "dir_change", "body_dir", "head_dir"),
+    7: ("distance", "direction", "dist_change", "dir_change", "body_dir", "head_dir", "point_dir"),
+}
+"""A seen player's fields by how many numbers follow its name (tackle/kick mark removed)."""
+
+
 def _fast_see_objects(time: int, parts: list[str]) -> SeeMessage | None:
     """The objects of :func:`_fast_see`; KeyError for a word not in _SEE_NUMBERS."""
     names = _FAST_SEEN_NAMES
@@ -1978,37 +1989,14 @@ def _fast_see_objects(time: int, parts: list[str]) -> SeeMessage | None:
             elif last == "k":
                 o["kicking"] = True
                 del v[-1]
-            n = len(v)
-            if n == 2:
+            if len(v) == 2:  # the usual case, assigned directly: the fast path's point
                 o["distance"] = num[v[0]]
                 o["direction"] = num[v[1]]
-            elif n == 6:
-                (
-                    o["distance"],
-                    o["direction"],
-                    o["dist_change"],
-                    o["dir_change"],
-                    o["body_dir"],
-                    o["head_dir"],
-                ) = map(number, v)
-            elif n == 1:
-                o["direction"] = num[v[0]]
-            elif n == 3:
-                o["distance"], o["direction"], o["point_dir"] = map(number, v)
-            elif n == 4:
-                o["distance"], o["direction"], o["dist_change"], o["dir_change"] = map(number, v)
-            elif n == 7:
-                (
-                    o["distance"],
-                    o["direction"],
-                    o["dist_change"],
-                    o["dir_change"],
-                    o["body_dir"],
-                    o["head_dir"],
-                    o["point_dir"],
-                ) = map(number, v)
-            else:
+                continue
+            fields = _PLAYER_FIELDS_BY_COUNT.get(len(v))
+            if fields is None:
                 return None
+            o.update(zip(fields, map(number, v)))  # noqa: B905 (the count picked the fields)
     return _make_see(time, tuple(objects))
 
 

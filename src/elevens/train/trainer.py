@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import math
 import time
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -844,10 +843,11 @@ def write_learning_curve(
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from elevens.eval.curves import run_series
     from elevens.train.logging import read_metrics_csv
 
     curves = read_metrics_csv(run_dir)
-    steps_curve, hours_curve = curves.get("time/env_steps"), curves.get("time/hours")
+    hours_curve = curves.get("time/hours")
     # Short runs read better in minutes.
     longest = float(np.max(hours_curve.values)) if hours_curve is not None else 0.0
     time_scale, time_unit = (1.0, "hours") if longest >= 2.0 else (60.0, "minutes")
@@ -858,11 +858,12 @@ def write_learning_curve(
         if name.startswith("eval/") and name.endswith("/outcome")
     )
     for team in teams:
-        curve = curves[f"eval/{team}/outcome"]
-        x_steps = _lookup(steps_curve, curve.steps)
-        x_hours = _lookup(hours_curve, curve.steps)
-        by_steps.plot(x_steps / 1e6, curve.values, marker="o", markersize=3, label=team)
-        by_hours.plot(x_hours * time_scale, curve.values, marker="o", markersize=3, label=team)
+        for axis, x_name, scale in (
+            (by_steps, "time/env_steps", 1e-6), (by_hours, "time/hours", time_scale)
+        ):
+            if x_name in curves:
+                series = run_series(curves, f"eval/{team}/outcome", x_name)
+                axis.plot(series.x * scale, series.y, marker="o", markersize=3, label=team)
     for axis in (by_steps, by_hours):
         axis.axhline(0.5, color="grey", linestyle=":", linewidth=1)
         axis.set_ylim(-0.02, 1.02)
@@ -878,14 +879,6 @@ def write_learning_curve(
     figure.savefig(path, dpi=110)
     plt.close(figure)
     return path
-
-
-def _lookup(curve: Any, steps: np.ndarray) -> np.ndarray:
-    """The curve's values at ``steps`` (iterations); NaN where it has none."""
-    if curve is None:
-        return np.full(steps.shape, np.nan)
-    by_step = dict(zip(curve.steps.tolist(), curve.values.tolist(), strict=True))
-    return np.asarray([by_step.get(int(s), math.nan) for s in steps], np.float64)
 
 
 def write_gif(

@@ -3,9 +3,12 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
+import signal
 import socket
 import stat
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -35,6 +38,7 @@ if "server::fail" in args:
 print("CONF", os.environ.get("RCSS_CONF_DIR"), flush=True)
 print("CWD", os.getcwd(), flush=True)
 print("ARGS", " ".join(sys.argv[1:]), flush=True)
+print("PID", os.getpid(), flush=True)
 if "server::nobind" not in args:
     s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     s.bind(("0.0.0.0", int(args["server::port"])))
@@ -200,6 +204,83 @@ def test_a_server_that_never_binds_times_out(fake_binary: str) -> None:
     with pytest.raises(RuntimeError, match="did not bind UDP port"):
         server.start()
     assert not server.alive
+
+
+def _server_pid(log: str) -> int:
+    return int(next(line for line in log.splitlines() if line.startswith("PID ")).split()[1])
+
+
+def _running(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    # A zombie (exited, not yet reaped by its parent) counts as stopped.
+    with contextlib.suppress(OSError):
+        return "Z" not in Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0]
+    return True
+
+
+def _wait_stopped(pid: int, timeout_s: float = 5.0) -> bool:
+    deadline = time.monotonic() + timeout_s
+    while _running(pid) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    return not _running(pid)
+
+
+def test_stop_passes_sigterm_to_the_server_through_its_guard(fake_binary: str) -> None:
+    with ServerProcess(fake_binary) as server:
+        server_pid = _server_pid(_log(server))
+        assert server.pid != server_pid and _running(server_pid)
+    assert _wait_stopped(server_pid)
+
+
+def test_the_guard_ends_as_its_server_did(fake_binary: str) -> None:
+    with ServerProcess(fake_binary) as server:
+        os.kill(_server_pid(_log(server)), signal.SIGKILL)
+        deadline = time.monotonic() + 5.0
+        while server.alive and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert server.returncode == -signal.SIGKILL
+
+
+def test_a_guard_killed_with_sigkill_takes_its_server_along(fake_binary: str) -> None:
+    with ServerProcess(fake_binary) as server:
+        server_pid = _server_pid(_log(server))
+        assert server.pid is not None
+        os.kill(server.pid, signal.SIGKILL)
+        assert _wait_stopped(server_pid)
+        assert not server.alive
+
+
+STARTER = """
+import sys, time
+from elevens.robocup.server import ServerProcess
+server = ServerProcess(sys.argv[1], log_path=sys.argv[2]).start()
+print("started", flush=True)
+time.sleep(60)
+"""
+
+
+def test_servers_stop_when_the_process_that_started_them_is_killed(
+    fake_binary: str, tmp_path: Path
+) -> None:
+    """SIGKILL cannot be caught, so no cleanup code runs in the starter: the guard notices."""
+    log_path = tmp_path / "server.log"
+    starter = subprocess.Popen(
+        [sys.executable, "-c", STARTER, fake_binary, str(log_path)],
+        stdout=subprocess.PIPE, text=True,
+    )
+    try:
+        assert starter.stdout is not None and starter.stdout.readline() == "started\n"
+        server_pid = _server_pid(log_path.read_text())
+        assert _running(server_pid)
+        starter.kill()
+        starter.wait()
+        assert _wait_stopped(server_pid)
+    finally:
+        starter.kill()
+        starter.wait()
 
 
 def test_address_is_only_known_after_start(fake_binary: str) -> None:

@@ -21,6 +21,7 @@ import shutil
 import signal
 import socket
 import subprocess
+import sys
 import tempfile
 import time
 import weakref
@@ -317,6 +318,8 @@ class ServerProcess:
 
     @property
     def pid(self) -> int | None:
+        """The process to signal: the guard that runs the server, passes SIGTERM, SIGINT and
+        SIGHUP on to it, and takes it along when it dies (``server_guard``)."""
         return self._proc.pid if self._proc is not None else None
 
     @property
@@ -375,7 +378,11 @@ class ServerProcess:
         # The server expands "~" from $USER (a literal ./~ directory when unset); keep
         # whatever it does inside the work directory.
         env.setdefault("USER", "elevens")
-        args = [self.binary] + [f"{k}={v}" for k, v in self.options.items()]
+        # Through the guard (server_guard.py): the server stops when this process dies, even
+        # by SIGKILL. ``pid`` and signals then go to the guard, which passes them on.
+        guard = [sys.executable, "-I", "-S", str(Path(__file__).with_name("server_guard.py"))]
+        args = [*guard, str(os.getpid()), self.binary]
+        args += [f"{k}={v}" for k, v in self.options.items()]
         with open(log_path, "ab") as log:
             self._proc = subprocess.Popen(
                 args,

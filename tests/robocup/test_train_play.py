@@ -27,6 +27,7 @@ from elevens.cli import main
 from elevens.env.soccer import Soccer
 from elevens.robocup.play import load_robocup_team, play_robocup
 from elevens.robocup.train import EPISODES_CSV, RoboCupTrainConfig, play_iteration, train_robocup
+from elevens.train.logging import read_metrics_csv
 from elevens.train.trainer import make_trainer
 from tests.robocup.conftest import needs_rcssserver
 
@@ -158,6 +159,12 @@ def test_train_writes_episodes_checkpoints_and_resumes(tmp_path: Path) -> None:
     ]
     assert {r["steps"] for r in rows} == {"12"}
     assert (run / "checkpoints" / "2").is_dir() and (run / "metrics.csv").exists()
+    # The simulator trainer's metrics, under the same names, then the server's own.
+    logged = read_metrics_csv(run)
+    for name in ("train/policy_loss", "train/grad_norm", "train/explained_variance",
+                 "train/visible_share", "env/shaping_active", "opponent/updates",
+                 "robocup/restarts", "time/env_steps_per_s"):
+        assert name in logged and logged[name].steps.tolist() == [1, 2], name
     assert json.loads((run / "robocup_config.json").read_text())["servers"] == 2
     assert "robocup train 2:" in lines[-1]
     # A second run into the same directory needs --resume, and then continues.

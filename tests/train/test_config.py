@@ -187,6 +187,23 @@ def test_json_round_trip(preset: str, tmp_path) -> None:
     assert load_config(path) == config
 
 
+def test_from_dict_fills_fields_an_older_version_did_not_save() -> None:
+    data = make_config("quickstart").to_dict()
+    del data["opponent"]["league_window"]
+    del data["run"]["eval_games"]
+    with pytest.warns(UserWarning, match="older version") as caught:
+        config = TrainConfig.from_dict(data, fill_missing=True)
+    message = str(caught[0].message)
+    assert "opponent.league_window" in message and "run.eval_games" in message
+    defaults = TrainConfig()
+    assert config.opponent.league_window == defaults.opponent.league_window
+    assert config.run.eval_games == defaults.run.eval_games
+    assert config.ppo == make_config("quickstart").ppo  # what was saved is kept
+    data["run"]["colour"] = "blue"  # still an error: a typo, or a newer version's field
+    with pytest.raises(ValueError, match=r"unknown keys \['colour'\].*newer version"):
+        TrainConfig.from_dict(data, fill_missing=True)
+
+
 def test_from_dict_rejects_unknown_and_missing_keys() -> None:
     data = make_config("quickstart").to_dict()
     data["run"]["colour"] = "blue"

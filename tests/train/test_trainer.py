@@ -5,6 +5,7 @@ writes its files; and a short 1 v 1 run learns to beat the random team."""
 from __future__ import annotations
 
 import dataclasses
+import json
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -266,6 +267,14 @@ def test_resume_refuses_another_config_and_fresh_runs_refuse_old_dirs(tmp_path: 
     changed = dataclasses.replace(config, ppo=dataclasses.replace(config.ppo, learning_rate=0.5))
     with pytest.raises(ValueError, match=r"ppo.learning_rate: 0.003 -> 0.5"):
         train(changed, resume=True, progress=False)
+    # A checkpoint of an older version, which had no opponent.league_window, still resumes.
+    for saved in (tmp_path / CHECKPOINT_DIR).rglob("config.json"):
+        old = json.loads(saved.read_text())
+        del old["opponent"]["league_window"]
+        saved.write_text(json.dumps(old))
+    longer = dataclasses.replace(config, run=dataclasses.replace(config.run, iterations=3))
+    with pytest.warns(UserWarning, match="opponent.league_window"):
+        assert train(longer, resume=True, progress=False).iteration == 3
 
 
 def test_ctrl_c_writes_a_checkpoint_and_the_run_can_continue(tmp_path: Path) -> None:

@@ -202,7 +202,7 @@ def _open_checkpoint(path: Path, iteration: int | None) -> tuple[Any, int, Any]:
             )
         raw_config = load_config(directory, step)
         try:
-            config = TrainConfig.from_dict(raw_config)
+            config = TrainConfig.from_dict(raw_config, fill_missing=True)
         except (TypeError, ValueError) as error:
             raise ValueError(
                 f"checkpoint {directory / str(step)}: its config.json is not a TrainConfig of "

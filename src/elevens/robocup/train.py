@@ -37,7 +37,7 @@ from elevens.env.state import GlobalState, Observation
 from elevens.train import opponents as opp
 from elevens.train.config import TrainConfig, make_config
 from elevens.train.rollout import Rollout, Transition, learner_sides
-from elevens.train.shaping import shaping_scoring_rate, shaping_update
+from elevens.train.shaping import shaping_update
 
 log = logging.getLogger(__name__)
 
@@ -452,7 +452,7 @@ def train_robocup(
                 polyak, config.opponent, result.params.policy, jnp.mean(outcomes),
                 opponent_config.polyak_tau, opponent_config.freeze_threshold,
             )
-            shaping = state.shaping
+            shaping_before = shaping = state.shaping
             if env_config.shaping_schedule:
                 shaping = shaping_update(
                     shaping, data.goals_for >= 1, env_config.shaping_threshold
@@ -483,16 +483,14 @@ def train_robocup(
             episodes += len(logs)
             episodes_file.flush()
             steps = config.servers * config.episode_length
+            # The simulator trainer's metrics, then what only this loop knows.
             metrics = {
-                "train/mean_score": float(jnp.mean(outcomes)),
-                "train/goals_for": float(jnp.mean(data.goals_for)),
-                "train/goals_against": float(jnp.mean(data.goals_against)),
-                "train/loss": float(result.metrics.total),
-                "train/entropy": float(result.metrics.entropy),
-                "train/approx_kl": float(result.metrics.approx_kl),
-                "env/shaping_active": float(state.shaping.active),
-                "env/scoring_rate": float(shaping_scoring_rate(state.shaping)),
-                "opponent/frozen": float(polyak.frozen),
+                name: float(value)
+                for name, value in trainer.metrics(
+                    data, learned, state.opponent, shaping_before, shaping
+                ).items()
+            }
+            metrics |= {
                 "robocup/restarts": float(sum(game.restarts for game in logs)),
                 "robocup/missed": float(sum(game.missed for game in logs)),
                 "robocup/malformed": float(sum(game.malformed for game in logs)),

@@ -23,6 +23,7 @@ import json
 import math
 import re
 import typing
+import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, Literal
@@ -254,9 +255,24 @@ class TrainConfig:
         return json.loads(json.dumps(dataclasses.asdict(self)))
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> TrainConfig:
-        """The inverse of ``to_dict``; unknown or missing keys are a ``ValueError``."""
-        return _from_dict(cls, data, "")
+    def from_dict(cls, data: Mapping[str, Any], fill_missing: bool = False) -> TrainConfig:
+        """The inverse of ``to_dict``; unknown keys are a ``ValueError``, and so are missing
+        keys unless ``fill_missing``.
+
+        ``fill_missing`` reads a config saved by an older version (a checkpoint's
+        config.json): fields added since then take their defaults, which reproduce the old
+        behaviour (a new field must default to what the code did before it existed), and a
+        ``UserWarning`` names them.
+        """
+        filled: list[str] | None = [] if fill_missing else None
+        config = _from_dict(cls, data, "", filled)
+        if filled:
+            warnings.warn(
+                "the config was saved by an older version of elevens; these fields are not in "
+                f"it and take their defaults: {', '.join(filled)}",
+                stacklevel=2,
+            )
+        return config
 
     def to_json(self) -> str:
         return json.dumps(self.to_dict(), indent=2) + "\n"
@@ -649,23 +665,37 @@ def _validate_run(run: RunConfig) -> None:
 # --------------------------------------------------------------------------------------------
 
 
-def _from_dict(cls: type, data: Mapping[str, Any], where: str) -> Any:
+def _from_dict(
+    cls: type, data: Mapping[str, Any], where: str, filled: list[str] | None = None
+) -> Any:
+    """``filled`` None: missing keys are an error; a list: missing fields that have defaults
+    are left to them, and their paths appended to it."""
     if not isinstance(data, Mapping):
         raise ValueError(f"config{where}: expected an object, got {type(data).__name__}")
     hints = typing.get_type_hints(cls)
-    names = [f.name for f in dataclasses.fields(cls)]
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    names = list(fields)
     unknown = sorted(set(data) - set(names))
     missing = [name for name in names if name not in data]
+    if filled is not None:
+        missing = [name for name in missing if not _has_default(fields[name])]
     if unknown or missing:
         raise ValueError(
             f"config{where or ' (top level)'}: unknown keys {unknown or 'none'}, missing keys "
             f"{missing or 'none'}; expected keys {', '.join(names)}"
+            + (" (unknown keys: was it saved by a newer version of elevens?)" if unknown else "")
         )
     values = {}
     for name in names:
+        if name not in data:
+            assert filled is not None
+            filled.append(f"{where}.{name}".lstrip("."))
+            continue
         hint, value = hints[name], data[name]
         if dataclasses.is_dataclass(hint):
-            values[name] = _from_dict(typing.cast(type, hint), value, f"{where}.{name}")
+            values[name] = _from_dict(
+                typing.cast(type, hint), value, f"{where}.{name}", filled
+            )
         elif typing.get_origin(hint) is tuple and isinstance(value, list):
             values[name] = tuple(value)
         elif hint is float and _is_int(value):
@@ -675,9 +705,17 @@ def _from_dict(cls: type, data: Mapping[str, Any], where: str) -> Any:
     return cls(**values)
 
 
+def _has_default(field: dataclasses.Field[Any]) -> bool:
+    return (
+        field.default is not dataclasses.MISSING
+        or field.default_factory is not dataclasses.MISSING
+    )
+
+
 def load_config(path: str | Path) -> TrainConfig:
-    """A TrainConfig from a JSON file (e.g. a checkpoint's ``config.json``)."""
-    return TrainConfig.from_json(Path(path).read_text(encoding="utf-8"))
+    """A TrainConfig from a JSON file (e.g. a checkpoint's ``config.json``), which may be from
+    an older version (see ``TrainConfig.from_dict``'s ``fill_missing``)."""
+    return TrainConfig.from_dict(json.loads(Path(path).read_text(encoding="utf-8")), True)
 
 
 RESUMABLE_FIELDS: tuple[str, ...] = (

@@ -162,6 +162,9 @@ class Trainer:
     learn: Callable[[LearnerParams, optax.OptState, Rollout, jax.Array], Learned]
     """``learn(params, opt_state, rollout, shuffle_key)``: advantages and PPO epochs alone, not
     jitted (the bench times the parts of an iteration with these)."""
+    metrics: Callable[[Rollout, Learned, OpponentState, ShapingState, ShapingState], Metrics]
+    """``metrics(rollout, learned, opponent, shaping_before, shaping_after)``: an iteration's
+    ``train/``, ``env/`` and ``opponent/`` metrics (loops that play elsewhere log the same)."""
 
     def update(self, state: TrainState, num_iterations: int) -> tuple[TrainState, Metrics]:
         if num_iterations == self.config.run.iterations_per_chunk:
@@ -452,29 +455,18 @@ def _build_trainer(config: TrainConfig) -> Trainer:
         )
         return Learned(update=update, values=values, returns=returns)
 
-    def iteration(state: TrainState) -> tuple[TrainState, Metrics]:
-        key, rollout_key, shuffle_key, league_key = jax.random.split(state.key, 4)
-        data = collect(state, rollout_key)
-        learned = learn(state.params, state.opt_state, data, shuffle_key)
-        result, values, returns = learned.update, learned.values, learned.returns
+    def iteration_metrics(
+        data: Rollout,
+        learned: Learned,
+        opponent: OpponentState,
+        shaping_before: ShapingState,
+        shaping_after: ShapingState,
+    ) -> Metrics:
+        """One iteration's metrics from its rollout, its update, the opponent after it and the
+        shaping state in force during it (before) and after it."""
         t = data.transitions
-        outcomes = opp.game_outcome(data.goals_for, data.goals_against)  # f32[G]
-        opponent = update_opponent(state, result.params.policy, outcomes, league_key)
-        shaping = state.shaping
-        if env_config.shaping_schedule:
-            shaping = shaping_update(
-                shaping, data.goals_for >= 1, env_config.shaping_threshold
-            )
-        new_state = TrainState(
-            params=result.params,
-            opt_state=result.opt_state,
-            opponent=opponent,
-            shaping=shaping,
-            key=key,
-            iteration=state.iteration + 1,
-            env_steps=state.env_steps + jnp.asarray(num_games * t.reward.shape[1], jnp.uint32),
-        )
-        loss = result.metrics
+        loss, values, returns = learned.update.metrics, learned.values, learned.returns
+        outcomes = opp.game_outcome(data.goals_for, data.goals_against)
         metrics = {
             "train/loss": loss.total,
             "train/policy_loss": loss.policy,
@@ -483,7 +475,7 @@ def _build_trainer(config: TrainConfig) -> Trainer:
             "train/approx_kl": loss.approx_kl,
             "train/clip_fraction": loss.clip_fraction,
             "train/advantage_mean": loss.advantage_mean,
-            "train/grad_norm": result.grad_norm,
+            "train/grad_norm": learned.update.grad_norm,
             "train/explained_variance": ppo.explained_variance(values, returns),
             "train/value_mean": jnp.mean(values),
             "train/return_mean": jnp.mean(returns[:, 0]),
@@ -498,14 +490,38 @@ def _build_trainer(config: TrainConfig) -> Trainer:
             "env/goal_reward": jnp.mean(data.goal_reward),
             "env/ball_shaping": jnp.mean(data.ball_shaping),
             "env/approach_shaping": jnp.mean(data.approach_shaping),
-            "env/shaping_active": state.shaping.active.astype(jnp.float32),
-            "env/shaping_switched_off": (state.shaping.active & ~shaping.active).astype(
+            "env/shaping_active": shaping_before.active.astype(jnp.float32),
+            "env/shaping_switched_off": (shaping_before.active & ~shaping_after.active).astype(
                 jnp.float32
             ),
-            "env/scoring_rate": shaping_scoring_rate(shaping),
+            "env/scoring_rate": shaping_scoring_rate(shaping_after),
             **opponent_metrics(opponent),
         }
-        return new_state, {name: jnp.asarray(v, jnp.float32) for name, v in metrics.items()}
+        return {name: jnp.asarray(v, jnp.float32) for name, v in metrics.items()}
+
+    def iteration(state: TrainState) -> tuple[TrainState, Metrics]:
+        key, rollout_key, shuffle_key, league_key = jax.random.split(state.key, 4)
+        data = collect(state, rollout_key)
+        learned = learn(state.params, state.opt_state, data, shuffle_key)
+        result = learned.update
+        outcomes = opp.game_outcome(data.goals_for, data.goals_against)  # f32[G]
+        opponent = update_opponent(state, result.params.policy, outcomes, league_key)
+        shaping = state.shaping
+        if env_config.shaping_schedule:
+            shaping = shaping_update(
+                shaping, data.goals_for >= 1, env_config.shaping_threshold
+            )
+        new_state = TrainState(
+            params=result.params,
+            opt_state=result.opt_state,
+            opponent=opponent,
+            shaping=shaping,
+            key=key,
+            iteration=state.iteration + 1,
+            env_steps=state.env_steps
+            + jnp.asarray(num_games * data.transitions.reward.shape[1], jnp.uint32),
+        )
+        return new_state, iteration_metrics(data, learned, opponent, state.shaping, shaping)
 
     chunk = run.iterations_per_chunk
 
@@ -525,6 +541,7 @@ def _build_trainer(config: TrainConfig) -> Trainer:
         iteration=iteration,
         collect=collect,
         learn=learn,
+        metrics=iteration_metrics,
     )
 
 
@@ -808,7 +825,7 @@ def _check_resumable(checkpointer: Any, config: TrainConfig) -> None:
     ``RESUMABLE_FIELDS``), listing every difference."""
     saved_dict = checkpointer.read_config()
     try:
-        saved = TrainConfig.from_dict(saved_dict)
+        saved = TrainConfig.from_dict(saved_dict, fill_missing=True)
     except (TypeError, ValueError) as error:
         raise ValueError(
             f"cannot resume from {checkpointer.directory}: its config.json does not describe a "

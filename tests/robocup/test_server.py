@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import contextlib
 import os
 import signal
 import socket
@@ -25,7 +24,7 @@ from elevens.robocup.server import (
     find_rcssserver,
     free_port_triple,
 )
-from tests.robocup.conftest import needs_rcssserver
+from tests.robocup.conftest import needs_rcssserver, process_running
 
 # A stand-in rcssserver: binds the player port it is given, reports its arguments and
 # environment in its log, then waits to be killed.
@@ -210,28 +209,19 @@ def _server_pid(log: str) -> int:
     return int(next(line for line in log.splitlines() if line.startswith("PID ")).split()[1])
 
 
-def _running(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    # A zombie (exited, not yet reaped by its parent) counts as stopped.
-    with contextlib.suppress(OSError):
-        return "Z" not in Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0]
-    return True
 
 
 def _wait_stopped(pid: int, timeout_s: float = 5.0) -> bool:
     deadline = time.monotonic() + timeout_s
-    while _running(pid) and time.monotonic() < deadline:
+    while process_running(pid) and time.monotonic() < deadline:
         time.sleep(0.05)
-    return not _running(pid)
+    return not process_running(pid)
 
 
 def test_stop_passes_sigterm_to_the_server_through_its_guard(fake_binary: str) -> None:
     with ServerProcess(fake_binary) as server:
         server_pid = _server_pid(_log(server))
-        assert server.pid != server_pid and _running(server_pid)
+        assert server.pid != server_pid and process_running(server_pid)
     assert _wait_stopped(server_pid)
 
 
@@ -274,7 +264,7 @@ def test_servers_stop_when_the_process_that_started_them_is_killed(
     try:
         assert starter.stdout is not None and starter.stdout.readline() == "started\n"
         server_pid = _server_pid(log_path.read_text())
-        assert _running(server_pid)
+        assert process_running(server_pid)
         starter.kill()
         starter.wait()
         assert _wait_stopped(server_pid)

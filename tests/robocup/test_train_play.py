@@ -7,7 +7,6 @@ at the end use a real rcssserver when there is one.
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import json
 import os
@@ -29,7 +28,7 @@ from elevens.robocup.play import load_robocup_team, play_robocup
 from elevens.robocup.train import EPISODES_CSV, RoboCupTrainConfig, play_iteration, train_robocup
 from elevens.train.logging import read_metrics_csv
 from elevens.train.trainer import make_trainer
-from tests.robocup.conftest import needs_rcssserver
+from tests.robocup.conftest import needs_rcssserver, process_running
 
 
 class SimEnv:
@@ -303,19 +302,10 @@ def test_sigterm_stops_the_servers_a_command_started(tmp_path: Path) -> None:
         process.send_signal(signal.SIGTERM)
         assert process.wait(timeout=30) == 0
         deadline = time.monotonic() + 10
-        while time.monotonic() < deadline and _running(server_pid):
+        while time.monotonic() < deadline and process_running(server_pid):
             time.sleep(0.1)
-        assert not _running(server_pid)
+        assert not process_running(server_pid)
     finally:
         process.kill()
 
 
-def _running(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    # A zombie (exited, not yet reaped by its parent) counts as stopped.
-    with contextlib.suppress(OSError):
-        return "Z" not in Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0]
-    return True

@@ -350,6 +350,26 @@ def test_short_run_learns_to_beat_the_random_team() -> None:
 
 
 @pytest.mark.slow
+def test_the_11v11_preset_runs_end_to_end(tmp_path: Path) -> None:
+    # The full game: the update compacts the visible slots (4 or more players a side) and
+    # evaluates, checkpoints, plots and draws its GIF as a real run does; short episodes.
+    config = make_config("11v11", **{
+        "env.episode_length": 16, "run.games_per_iteration": 5, "ppo.batch_size": 55,
+        "run.iterations": 2, "run.eval_every": 2, "run.eval_games": 2,
+        "run.checkpoint_every": 2, "run.run_dir": str(tmp_path),
+    })
+    result = train(config, progress=False)
+    assert result.iteration == 2 and not result.interrupted
+    curves = read_metrics_csv(tmp_path)
+    assert 0.0 < curves["train/visible_share"].values[-1] < 1.0
+    assert np.isfinite(curves["train/loss"].values).all()
+    for team in ("random", "naive", "teamwork"):
+        assert f"eval/{team}/outcome" in curves
+    assert Checkpointer(tmp_path / CHECKPOINT_DIR).latest_step() == 2
+    assert result.files["gif"].read_bytes()[:6] == b"GIF89a"
+
+
+@pytest.mark.slow
 def test_bench_train_json_fields(capsys: pytest.CaptureFixture[str]) -> None:
     import json
 

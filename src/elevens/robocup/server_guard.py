@@ -58,17 +58,15 @@ def main(argv: list[str]) -> int:
 
     for signum in FORWARDED:
         signal.signal(signum, forward)
-    if os.getppid() != parent:  # the parent died before the handlers were in place
-        code = _stop(server)
-    else:
-        while True:
-            try:
-                code = server.wait(timeout=PARENT_CHECK_S)
-                break
-            except subprocess.TimeoutExpired:
-                if os.getppid() != parent:
-                    code = _stop(server)
-                    break
+    while True:
+        if os.getppid() != parent:  # checked first too: it may have died before the handlers
+            code = _stop(server)
+            break
+        try:
+            code = server.wait(timeout=PARENT_CHECK_S)
+            break
+        except subprocess.TimeoutExpired:
+            pass
     if code < 0:  # killed by a signal: end the same way, so the parent sees that signal
         if -code in FORWARDED:
             signal.signal(-code, signal.SIG_DFL)

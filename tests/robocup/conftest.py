@@ -6,6 +6,7 @@ from __future__ import annotations
 import contextlib
 import os
 import shutil
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -44,3 +45,11 @@ def process_running(pid: int) -> bool:
     with contextlib.suppress(OSError):
         return "Z" not in Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0]
     return True
+
+
+def wait_stopped(pid: int, timeout_s: float = 5.0) -> bool:
+    """Whether process ``pid`` has stopped within ``timeout_s`` (polled)."""
+    deadline = time.monotonic() + timeout_s
+    while process_running(pid) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    return not process_running(pid)

@@ -24,7 +24,7 @@ from elevens.robocup.server import (
     find_rcssserver,
     free_port_triple,
 )
-from tests.robocup.conftest import needs_rcssserver, process_running
+from tests.robocup.conftest import needs_rcssserver, process_running, wait_stopped
 
 # A stand-in rcssserver: binds the player port it is given, reports its arguments and
 # environment in its log, then waits to be killed.
@@ -211,18 +211,11 @@ def _server_pid(log: str) -> int:
 
 
 
-def _wait_stopped(pid: int, timeout_s: float = 5.0) -> bool:
-    deadline = time.monotonic() + timeout_s
-    while process_running(pid) and time.monotonic() < deadline:
-        time.sleep(0.05)
-    return not process_running(pid)
-
-
 def test_stop_passes_sigterm_to_the_server_through_its_guard(fake_binary: str) -> None:
     with ServerProcess(fake_binary) as server:
         server_pid = _server_pid(_log(server))
         assert server.pid != server_pid and process_running(server_pid)
-    assert _wait_stopped(server_pid)
+    assert wait_stopped(server_pid)
 
 
 def test_the_guard_ends_as_its_server_did(fake_binary: str) -> None:
@@ -239,7 +232,7 @@ def test_a_guard_killed_with_sigkill_takes_its_server_along(fake_binary: str) ->
         server_pid = _server_pid(_log(server))
         assert server.pid is not None
         os.kill(server.pid, signal.SIGKILL)
-        assert _wait_stopped(server_pid)
+        assert wait_stopped(server_pid)
         assert not server.alive
 
 
@@ -267,7 +260,7 @@ def test_servers_stop_when_the_process_that_started_them_is_killed(
         assert process_running(server_pid)
         starter.kill()
         starter.wait()
-        assert _wait_stopped(server_pid)
+        assert wait_stopped(server_pid)
     finally:
         starter.kill()
         starter.wait()

@@ -14,7 +14,6 @@ import re
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
@@ -28,7 +27,7 @@ from elevens.robocup.play import load_robocup_team, play_robocup
 from elevens.robocup.train import EPISODES_CSV, RoboCupTrainConfig, play_iteration, train_robocup
 from elevens.train.logging import read_metrics_csv
 from elevens.train.trainer import make_trainer
-from tests.robocup.conftest import needs_rcssserver, process_running
+from tests.robocup.conftest import needs_rcssserver, wait_stopped
 
 
 class SimEnv:
@@ -301,10 +300,7 @@ def test_sigterm_stops_the_servers_a_command_started(tmp_path: Path) -> None:
         os.kill(server_pid, 0)  # running
         process.send_signal(signal.SIGTERM)
         assert process.wait(timeout=30) == 0
-        deadline = time.monotonic() + 10
-        while time.monotonic() < deadline and process_running(server_pid):
-            time.sleep(0.1)
-        assert not process_running(server_pid)
+        assert wait_stopped(server_pid, timeout_s=10.0)
     finally:
         process.kill()
 

@@ -224,16 +224,70 @@ class MaskedMultiHeadAttention(nn.Module):
         probes = (
             head_queries @ _block_diagonal(jnp.swapaxes(key_kernel, 0, 2))  # [h*d, h*w]
         ).reshape(rows, heads_count, width) / math.sqrt(head_size)
-        # Per (observer, entity): one dot product per head. The [m, E, H] layout of the scores
-        # measured 1.1 to 1.5x faster on CPU than [m, H, E] (forward and gradient).
-        scores = jnp.einsum("mew,mhw->meh", values, probes)
-        weights, any_visible = masked_softmax(scores, mask[..., None], axis=-2)
-        pooled = jnp.einsum("meh,mew->mhw", weights, values)
+        # Per (observer, entity): one score per head, softmax over the entities, values pooled.
+        pooled = attention_pool(values, probes, mask)
         # Back per observer: the value and output projections of each head.
         heads = pooled.reshape(rows, -1) @ _block_diagonal(value_kernel) + value_bias.reshape(-1)
         out = heads @ out_kernel.reshape(-1, width) + out_bias
-        out = jnp.where(any_visible[:, 0, :1], out, 0.0)
+        out = jnp.where(jnp.any(mask, axis=-1, keepdims=True), out, 0.0)
         return out.reshape(*lead, width)
+
+
+@jax.custom_vjp
+def attention_pool(values: jax.Array, probes: jax.Array, mask: jax.Array) -> jax.Array:
+    """The core of ``MaskedMultiHeadAttention``: per observer m and head h, the softmax over the
+    visible entities of ``values[m, e] . probes[m, h]``, and the values pooled by those weights.
+
+    values f32[M, E, W], probes f32[M, H, W], mask bool[M, E] -> pooled f32[M, H, W] (zero where
+    no entity is visible). The products that contract a short axis (the E entities, or the H
+    heads in the value gradient) are unrolled multiply-adds: as batched matmuls with tiny inner
+    sizes XLA's CPU backend ran them at a few GFLOP/s, and the hand-written gradient below made
+    this core 2x faster (forward and backward, 11 v 11 update shapes). The scores, which contract
+    the W features, stay matmuls.
+    """
+    return _attention_pool_fwd(values, probes, mask)[0]
+
+
+def _attention_weights(values: jax.Array, probes: jax.Array, mask: jax.Array) -> jax.Array:
+    # The [m, E, H] layout of the scores measured 1.1 to 1.5x faster on CPU than [m, H, E].
+    scores = jnp.einsum("mew,mhw->meh", values, probes)
+    return masked_softmax(scores, mask[..., None], axis=-2)[0]
+
+
+def _sum_over_entities(weights: jax.Array, values: jax.Array) -> jax.Array:
+    """``einsum("meh,mew->mhw")`` as E unrolled multiply-adds (see ``attention_pool``)."""
+    rows, num_entities, heads = weights.shape
+    total = jnp.zeros((rows, heads, values.shape[-1]), values.dtype)
+    for e in range(num_entities):
+        total = total + weights[:, e, :, None] * values[:, e, None, :]
+    return total
+
+
+def _attention_pool_fwd(
+    values: jax.Array, probes: jax.Array, mask: jax.Array
+) -> tuple[jax.Array, tuple[jax.Array, jax.Array, jax.Array]]:
+    weights = _attention_weights(values, probes, mask)
+    return _sum_over_entities(weights, values), (values, probes, weights)
+
+
+def _attention_pool_bwd(
+    residuals: tuple[jax.Array, jax.Array, jax.Array], grad: jax.Array
+) -> tuple[jax.Array, jax.Array, None]:
+    values, probes, weights = residuals
+    grad_weights = jnp.einsum("mew,mhw->meh", values, grad)
+    # Softmax backward; masked entities have weight 0, so their score gradient is 0 too.
+    grad_scores = weights * (grad_weights - jnp.sum(weights * grad_weights, axis=1, keepdims=True))
+    grad_values = jnp.zeros_like(values)
+    for h in range(probes.shape[1]):
+        grad_values = (
+            grad_values
+            + weights[:, :, h, None] * grad[:, None, h, :]
+            + grad_scores[:, :, h, None] * probes[:, None, h, :]
+        )
+    return grad_values, _sum_over_entities(grad_scores, values), None
+
+
+attention_pool.defvjp(_attention_pool_fwd, _attention_pool_bwd)
 
 
 def _block_diagonal(kernel: jax.Array) -> jax.Array:

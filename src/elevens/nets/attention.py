@@ -88,12 +88,17 @@ def _rows_matmul_bwd(
 ) -> tuple[jax.Array, jax.Array]:
     x, kernel = residuals
     chunks = x.shape[0] // WEIGHT_GRADIENT_CHUNK
-    # x^T grad as a sum of partial products over blocks of rows: 1.2x faster on the 2-core CPU
-    # than one product contracting all rows (80k rows of 64, 11 v 11 update shapes).
+    # x^T grad as a sum of partial products over blocks of rows, each block of x transposed in
+    # memory first: XLA's CPU backend sends only a dot whose left operand contracts its last
+    # axis to its fast matmul library (YNNPACK), and would fold a plain transpose back into the
+    # dot. The first barrier makes the transpose read the saved x instead of recomputing it.
+    # 11 v 11 update: `learn` 2 to 3% faster than blocks without the transpose.
+    x_saved = jax.lax.optimization_barrier(x)
+    x_blocks = jax.lax.optimization_barrier(
+        jnp.swapaxes(x_saved.reshape(chunks, WEIGHT_GRADIENT_CHUNK, x.shape[1]), 1, 2)
+    )
     partial = jnp.einsum(
-        "cri,cro->cio",
-        x.reshape(chunks, WEIGHT_GRADIENT_CHUNK, x.shape[1]),
-        grad.reshape(chunks, WEIGHT_GRADIENT_CHUNK, grad.shape[1]),
+        "cir,cro->cio", x_blocks, grad.reshape(chunks, WEIGHT_GRADIENT_CHUNK, grad.shape[1])
     )
     return grad @ kernel.T, jnp.sum(partial, axis=0)
 

@@ -280,8 +280,12 @@ def _attention_pool_bwd(
 ) -> tuple[jax.Array, jax.Array, None]:
     values, probes, weights = residuals
     grad_weights = jnp.einsum("mew,mhw->meh", values, grad)
-    # Softmax backward; masked entities have weight 0, so their score gradient is 0 too.
-    grad_scores = weights * (grad_weights - jnp.sum(weights * grad_weights, axis=1, keepdims=True))
+    # Softmax backward; masked entities have weight 0, so their score gradient is 0 too. The
+    # barrier stores it once: fused into the products below, XLA recomputed it for each of their
+    # outputs (11 v 11 `learn` 4% slower).
+    grad_scores = jax.lax.optimization_barrier(
+        weights * (grad_weights - jnp.sum(weights * grad_weights, axis=1, keepdims=True))
+    )
     grad_values = jnp.zeros_like(values)
     for h in range(probes.shape[1]):
         grad_values = (

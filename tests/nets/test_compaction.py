@@ -118,6 +118,23 @@ def test_capacity_checks_report_overflow_and_pick_the_smallest_fit() -> None:
     assert int(visible_capacity_index(obs, (0.5, 0.7, 0.8))) == 1
     assert int(visible_capacity_index(obs, (0.6,))) == 1  # none fits: the dense pass
     assert int(visible_capacity_index(obs, ())) == 0
+    # one fraction per group: (teammates, opponents)
+    assert int(visible_capacity_index(obs, ((0.5, 0.55), (0.5, 0.7), (0.6, 0.8)))) == 1
+    assert int(visible_capacity_index(obs, ((0.2, 1.0),))) == 1
+
+
+def test_per_group_capacities_size_each_group_and_check_its_length() -> None:
+    mask = jnp.zeros((40, 5), bool).at[:, :2].set(True).at[:20, 2:].set(True)  # 100% / 50%
+    assert bool(fits_capacity(mask, GROUPS, (1.0, 0.5)))
+    assert not bool(fits_capacity(mask, GROUPS, (1.0, 0.4)))  # the second group overflows
+    assert not bool(fits_capacity(mask, GROUPS, (0.9, 1.0)))  # the first one does
+    compaction = visible_compaction(mask, GROUPS, (1.0, 0.5))
+    assert compaction.starts == (0, group_capacity(40, 2, 1.0))
+    assert compaction.order.size == group_capacity(40, 2, 1.0) + group_capacity(40, 3, 0.5)
+    back = compaction.scatter(compaction.gather(jnp.ones((40, 5, 1)))).reshape(40, 5)
+    np.testing.assert_array_equal(back, jnp.where(mask, 1.0, 0.0))  # nothing dropped
+    with pytest.raises(ValueError, match=r"one fraction per group \(2 groups\)"):
+        visible_compaction(mask, GROUPS, (1.0, 0.5, 0.5))
 
 
 def test_an_empty_group_compacts_to_nothing() -> None:

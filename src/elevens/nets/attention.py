@@ -454,28 +454,49 @@ def group_capacity(rows: int, width: int, fraction: float) -> int:
     return multiple * math.ceil(wanted / multiple)
 
 
-def fits_capacity(mask: jax.Array, groups: EntityGroups, fraction: float) -> jax.Array:
+Capacity = float | tuple[float, ...]
+"""The share of each group's slots that a compaction keeps: one fraction for every group, or
+one per group (in the order of the groups)."""
+
+
+def group_fractions(capacity: Capacity, groups: EntityGroups) -> tuple[float, ...]:
+    """``capacity`` as one fraction per group; ValueError if a tuple has the wrong length."""
+    if isinstance(capacity, tuple):
+        if len(capacity) != len(groups):
+            raise ValueError(
+                f"capacity={capacity!r} is invalid: it needs one fraction per group "
+                f"({len(groups)} groups)"
+            )
+        return capacity
+    return (capacity,) * len(groups)
+
+
+def fits_capacity(mask: jax.Array, groups: EntityGroups, capacity: Capacity) -> jax.Array:
     """bool[]: every group of mask bool[M, E] has at most ``group_capacity`` visible slots, so
-    ``visible_compaction(mask, groups, fraction)`` loses nothing."""
+    ``visible_compaction(mask, groups, capacity)`` loses nothing."""
     rows = mask.shape[0]
     fits = [
         jnp.sum(mask[:, start:stop]) <= group_capacity(rows, stop - start, fraction)
-        for start, stop in groups
+        for (start, stop), fraction in zip(groups, group_fractions(capacity, groups), strict=True)
     ]
     return jnp.all(jnp.stack(fits))
 
 
 def visible_compaction(
-    mask: jax.Array, groups: EntityGroups, fraction: float
+    mask: jax.Array, groups: EntityGroups, capacity: Capacity
 ) -> VisibleCompaction:
     """Compact the True entries of mask bool[M, E], group by group (see ``VisibleCompaction``).
 
-    Each group keeps ``group_capacity(M, width, fraction)`` rows. Visible slots beyond a group's
-    capacity are dropped: check ``fits_capacity`` first and compute densely where it is False.
+    Group g keeps ``group_capacity(M, width, fraction)`` rows, with its fraction of
+    ``capacity``. Visible slots beyond a group's capacity are dropped: check ``fits_capacity``
+    first and compute densely where it is False.
     """
     rows, num_entities = mask.shape
     num_slots = rows * num_entities
-    capacities = [group_capacity(rows, stop - start, fraction) for start, stop in groups]
+    capacities = [
+        group_capacity(rows, stop - start, fraction)
+        for (start, stop), fraction in zip(groups, group_fractions(capacity, groups), strict=True)
+    ]
     total = sum(capacities)
     orders, slots, starts = [], [], []
     start_row = 0

@@ -41,6 +41,7 @@ from elevens.nets.attention import (
     FF2,
     Activation,
     AttentionPool,
+    Capacity,
     EntityGroups,
     fits_capacity,
     visible_compaction,
@@ -186,15 +187,16 @@ def entity_groups(players_per_team: int) -> EntityGroups:
     return ((0, n - 1), (n - 1, 2 * n - 1))
 
 
-def visible_capacity_index(obs: Observation, fractions: Sequence[float]) -> jax.Array:
-    """i32[]: the index of the first of ``fractions`` (ascending) whose compaction holds every
-    visible teammate and opponent of obs (any leading axes, all rows together), or
-    ``len(fractions)`` where none does. With a 180 degree view about half the slots are
-    visible, so a compacted update does about half the per-entity work (``embed``)."""
+def visible_capacity_index(obs: Observation, capacities: Sequence[Capacity]) -> jax.Array:
+    """i32[]: the index of the first of ``capacities`` (smallest first; each one fraction, or
+    a (teammates, opponents) pair) whose compaction holds every visible teammate and opponent
+    of obs (any leading axes, all rows together), or ``len(capacities)`` where none does. With
+    a 180 degree view about half the slots are visible, so a compacted update does about half
+    the per-entity work (``embed``)."""
     num_slots = obs.entity_mask.shape[-1]
     mask = obs.entity_mask[..., : num_slots - 1].reshape(-1, num_slots - 1)
     groups = entity_groups(num_slots // 2)
-    misses = [~fits_capacity(mask, groups, fraction) for fraction in fractions]
+    misses = [~fits_capacity(mask, groups, capacity) for capacity in capacities]
     return jnp.sum(jnp.stack([*misses, jnp.zeros((), bool)]).astype(jnp.int32))
 
 
@@ -242,14 +244,16 @@ class AttentionPolicy(nn.Module):
         zeros = jnp.zeros((*batch_shape, self.lstm_features), jnp.float32)
         return tuple(LSTMState(cell=zeros, hidden=zeros) for _ in range(self.lstm_layers))
 
-    def embed(self, obs: Observation, visible_fraction: float | None = None) -> jax.Array:
+    def embed(
+        self, obs: Observation, visible_fraction: Capacity | None = None
+    ) -> jax.Array:
         """The memoryless part: Observation with leading axes [...] -> f32[..., d] for out_r.
 
         ``visible_fraction`` (attention only): run the per-entity layers (encode_team_ff,
         encode_opp_ff, value_opp_ff's value_ff) on the visible teammates and opponents only, at
-        most that share of each group's slots. The result equals the dense one (up to float
-        rounding) when they fit, which ``visible_capacity_index`` checks; slots beyond the
-        capacity would be dropped.
+        most that share of each group's slots (one fraction, or a (teammates, opponents) pair).
+        The result equals the dense one (up to float rounding) when they fit, which
+        ``visible_capacity_index`` checks; slots beyond the capacity would be dropped.
         """
         num_slots = obs.entities.shape[-2]  # 2n: n - 1 teammates, n opponents, the ball
         n = num_slots // 2
@@ -307,7 +311,7 @@ class AttentionPolicy(nn.Module):
         obs_seq: Observation,
         reset_seq: jax.Array,
         time_axis: int = 0,
-        visible_fraction: float | None = None,
+        visible_fraction: Capacity | None = None,
     ) -> tuple[PolicyCarry, PolicyOutput]:
         """T steps: obs_seq with leading axes [T, ...], reset_seq bool[T, ...] ->
         (carry after step T, PolicyOutput with leading axes [T, ...]). Equals T calls of

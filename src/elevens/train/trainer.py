@@ -51,6 +51,7 @@ from elevens.env.params import EnvParams
 from elevens.env.soccer import Soccer
 from elevens.env.state import GlobalState, Observation
 from elevens.eval.play import resolve_team
+from elevens.nets.attention import Capacity
 from elevens.nets.critic import AttentionCritic
 from elevens.nets.policy import AttentionPolicy, PolicyCarry, visible_capacity_index
 from elevens.train import opponents as opp
@@ -214,10 +215,11 @@ def _computation_config(config: TrainConfig) -> TrainConfig:
     )
 
 
-VISIBLE_FRACTIONS = (0.6, 0.7, 0.8)
-"""Capacities (shares of the teammate and opponent slots) tried in turn for the policy's
-per-entity layers in the update: about half the slots are in the 180 degree view. A minibatch
-that fits none of them takes the dense pass, with the same result."""
+VISIBLE_FRACTIONS: tuple[Capacity, ...] = ((0.6, 0.7), (0.6, 0.75), (0.7, 0.8))
+"""Capacities (shares of the teammate slots and of the opponent slots) tried in turn for the
+policy's per-entity layers in the update. A minibatch that fits none of them takes the dense
+pass, with the same result. In 11 v 11 with the 180 degree view about 50% of the teammates and
+66% of the opponents are in view, and a minibatch's share goes up to about 58% and 73%."""
 
 MIN_PLAYERS_TO_COMPACT = 4
 """Below this many players a side the per-entity layers are too small a share of the update
@@ -282,7 +284,7 @@ def _build_trainer(config: TrainConfig) -> Trainer:
         return opponent.polyak.params
 
     def loss_fn(
-        params: LearnerParams, batch: UpdateBatch, visible_fraction: float | None = None
+        params: LearnerParams, batch: UpdateBatch, visible_fraction: Capacity | None = None
     ) -> tuple[jax.Array, ppo.PPOLoss]:
         """A minibatch of g whole games: leading [g, n, T] (see UpdateBatch).
         ``visible_fraction``: the policy's per-entity layers on the visible slots only

@@ -160,3 +160,22 @@ def test_entropy_estimate_is_differentiable() -> None:
     # A narrow Gaussian is barely squashed: widening it raises the entropy almost one for one.
     assert bool(jnp.all(jnp.isfinite(grad)))
     np.testing.assert_allclose(grad, 1.0, atol=0.1)
+
+
+def test_squashed_entropy_stops_rewarding_a_wider_gaussian_once_the_tanh_saturates() -> None:
+    noise = jax.random.normal(jax.random.key(8), (4096, 2))
+
+    def mean_entropy(log_std: jax.Array, which: str) -> jax.Array:
+        dist = TanhGaussian.create(jnp.array([0.0, 1.0]), log_std)
+        if which == "gaussian":
+            return jnp.sum(dist.gaussian_entropy())
+        return jnp.mean(dist.entropy_at(noise))
+
+    for log_std in (-2.0, 0.0, 1.5):
+        dist = TanhGaussian.create(jnp.array([0.0, 1.0]), jnp.full(2, log_std))
+        assert bool(jnp.all(dist.entropy_at(noise) <= dist.gaussian_entropy()))
+        gaussian = jax.grad(mean_entropy)(jnp.full(2, log_std), "gaussian")
+        np.testing.assert_allclose(gaussian, 1.0)  # always: the bonus widens without limit
+    narrow = jax.grad(mean_entropy)(jnp.full(2, -2.0), "squashed")
+    wide = jax.grad(mean_entropy)(jnp.full(2, 1.5), "squashed")
+    assert bool(jnp.all(narrow > 0.8)) and bool(jnp.all(wide < 0.0))

@@ -302,6 +302,9 @@ def test_hyperparams_defaults_and_validation() -> None:
             PPOHyperparams(learning_rate=bad)
     with pytest.raises(ValueError, match="advantage_estimator"):
         PPOHyperparams(advantage_estimator="td")  # type: ignore[arg-type]
+    assert hp.entropy_estimator == "gaussian"  # the thesis' eq. 3.75
+    with pytest.raises(ValueError, match="entropy_estimator='exact' is invalid"):
+        PPOHyperparams(entropy_estimator="exact")  # type: ignore[arg-type]
 
 
 # ------------------------------------------------------------------------------------------

@@ -179,8 +179,9 @@ def test_polyak_freeze_rule_follows_the_mean_score() -> None:
         {"ppo.advantage_estimator": "gae", "ppo.clip_value": True},
         {"network.use_lstm": False, "network.use_attention": False},
         {"env.shaping_schedule": False},
+        {"ppo.entropy_estimator": "squashed"},
     ],
-    ids=["self", "league", "gae", "feedforward", "no-schedule"],
+    ids=["self", "league", "gae", "feedforward", "no-schedule", "squashed-entropy"],
 )
 def test_variants_trace(overrides: dict) -> None:
     # Tracing (eval_shape) checks every variant's shapes without paying for its compile.
@@ -189,6 +190,30 @@ def test_variants_trace(overrides: dict) -> None:
     new_state, metrics = jax.eval_shape(trainer.update_chunk, state)
     assert str(jax.tree.structure(new_state)) == str(jax.tree.structure(state))
     assert all(m.shape == (2,) for m in metrics.values())
+
+
+def test_squashed_entropy_bonus_is_the_action_entropy_estimate() -> None:
+    gaussian = make_trainer(tiny_config(**{"run.games_per_iteration": 16, "ppo.batch_size": 16}))
+    squashed = make_trainer(
+        tiny_config(
+            **{
+                "run.games_per_iteration": 16,
+                "ppo.batch_size": 16,
+                "ppo.entropy_estimator": "squashed",
+            }
+        )
+    )
+    state = gaussian.init(jax.random.key(0))
+    data = jax.jit(gaussian.collect)(state, jax.random.key(1))
+    learned = {
+        name: jax.jit(trainer.learn)(state.params, state.opt_state, data, jax.random.key(2))
+        for name, trainer in (("gaussian", gaussian), ("squashed", squashed))
+    }
+    entropy = {name: float(result.update.metrics.entropy) for name, result in learned.items()}
+    # At init log_std is about 0 in both action dimensions: the Gaussian's entropy is about
+    # 2 * 1.42, and the squashed estimate about 2 * 0.75 lower (E log(1 - tanh(u)^2) = -0.75).
+    assert entropy["gaussian"] == pytest.approx(2.84, abs=0.1)
+    assert entropy["gaussian"] - entropy["squashed"] == pytest.approx(1.5, abs=0.3)
 
 
 @pytest.mark.slow

@@ -114,9 +114,16 @@ class TanhGaussian:
         inside a PPO minibatch, where the loss averages over many states anyway.
         """
         noise = jax.random.normal(key, (num_samples, *self.mean.shape), self.mean.dtype)
+        return jnp.mean(self.entropy_at(noise), axis=0)
+
+    def entropy_at(self, noise: jax.Array) -> jax.Array:
+        """f32[..., ...]: the one-sample entropy estimate at given standard normal ``noise``
+        f32[..., d] (leading axes broadcast against the distribution's): ``H[u] + sum_i
+        log(1 - tanh(u_i)^2)`` with ``u = mean + std * noise``. Never above
+        ``gaussian_entropy``; its gradient lowers ``log_std`` once the tanh saturates, where the
+        Gaussian's keeps raising it."""
         pre_tanh = self.mean + jnp.exp(self.log_std) * noise
-        correction = jnp.mean(jnp.sum(log_tanh_jacobian(pre_tanh), axis=-1), axis=0)
-        return self.gaussian_entropy() + correction
+        return self.gaussian_entropy() + jnp.sum(log_tanh_jacobian(pre_tanh), axis=-1)
 
     def mode(self) -> jax.Array:
         """f32[..., d]: ``tanh(mean)``, the deterministic action (the median of each component;

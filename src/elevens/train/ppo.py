@@ -67,6 +67,13 @@ class PPOHyperparams:
     (G - V)^2 of eq. 3.61, so the value term is 0.5 * (G - V)^2 as in Algorithm 4 line 21."""
     entropy_weight: float = 0.01
     """Entropy loss weighting alpha_e (table 6.1)."""
+    entropy_estimator: Literal["gaussian", "squashed"] = "gaussian"
+    """The entropy in the bonus. "gaussian": the thesis' closed-form entropy of the pre-tanh
+    Gaussian (eq. 3.75), an upper bound that grows with log_std without limit, so the bonus keeps
+    widening a policy whose actions already sit at +-1. "squashed": a one-sample Monte Carlo
+    estimate of the entropy of the action itself (``TanhGaussian.entropy_at``, with noise drawn
+    once per sample and iteration), which stops rewarding a wider Gaussian once the tanh
+    saturates."""
     normalize_advantages: bool = False
     """Standardise advantages per minibatch (mean 0, std 1 over the minibatch's valid entries).
     Off by default: Algorithm 4 uses the raw A = G - V. CleanRL and Brax turn it on."""
@@ -90,6 +97,11 @@ class PPOHyperparams:
         if not self.learning_rate > 0:  # also catches NaN
             raise ValueError(
                 f"learning_rate={self.learning_rate!r} is invalid: it must be a number > 0"
+            )
+        if self.entropy_estimator not in ("gaussian", "squashed"):
+            raise ValueError(
+                f"entropy_estimator={self.entropy_estimator!r} is invalid: "
+                "it must be 'gaussian' or 'squashed'"
             )
         if self.epochs < 1:
             raise ValueError(f"epochs={self.epochs!r} is invalid: it must be >= 1")

@@ -126,6 +126,7 @@ class UpdateBatch(struct.PyTreeNode):
     returns: jax.Array  # f32[G, n, T] critic targets (Monte Carlo returns or GAE lambda-returns)
     advantages: jax.Array | None  # f32[G, n, T] GAE advantages; None: A = G - V in the loss
     old_values: jax.Array | None  # f32[G, n, T] rollout-time values, only for value clipping
+    entropy_noise: jax.Array | None = None  # f32[G, n, T, 2] only for the squashed entropy
 
 
 class Learned(NamedTuple):
@@ -313,9 +314,11 @@ def _build_trainer(config: TrainConfig) -> Trainer:
             sequences(batch.log_prob),
             values,
             sequences(batch.returns),
-            # The thesis' entropy term: the closed-form entropy of the pre-tanh Gaussian
-            # (eq. 3.75), deterministic and an upper bound of the squashed one.
-            distribution.gaussian_entropy(),
+            # The thesis' entropy term, the closed-form entropy of the pre-tanh Gaussian
+            # (eq. 3.75), or an estimate of the action's own (ppo.entropy_estimator).
+            distribution.gaussian_entropy()
+            if batch.entropy_noise is None
+            else distribution.entropy_at(sequences(batch.entropy_noise)),
             advantages=None if batch.advantages is None else sequences(batch.advantages),
             old_values=None if batch.old_values is None else sequences(batch.old_values),
             hyperparams=hp,
@@ -432,6 +435,10 @@ def _build_trainer(config: TrainConfig) -> Trainer:
         def by_game(tree: Any) -> Any:  # [U, ...] -> [G, n, ...]: free, games are outermost
             return jax.tree.map(lambda x: x.reshape(num_games, n, *x.shape[1:]), tree)
 
+        entropy_noise = None
+        if hp.entropy_estimator == "squashed":
+            shuffle_key, noise_key = jax.random.split(shuffle_key)
+            entropy_noise = jax.random.normal(noise_key, t.pre_tanh.shape, t.pre_tanh.dtype)
         batch = UpdateBatch(
             obs=by_game(t.obs),
             global_state=data.game_global_state,
@@ -442,6 +449,7 @@ def _build_trainer(config: TrainConfig) -> Trainer:
             returns=by_game(returns),
             advantages=None if gae_advantages is None else by_game(gae_advantages),
             old_values=by_game(values) if hp.clip_value else None,
+            entropy_noise=None if entropy_noise is None else by_game(entropy_noise),
         )
         # minibatch_size counts player sequences; validate() made it a multiple of n.
         update = ppo.update_epochs(

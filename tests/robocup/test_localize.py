@@ -367,6 +367,10 @@ def _ref_fit(
         th = math.remainder(th, 2.0 * math.pi)
         if abs(step[0]) + abs(step[1]) < 1e-4 and abs(step[2]) < 1e-6:
             break
+    if cov is not None and not (np.diag(cov) > 0.0).all():
+        # The inverse of a positive definite J'J has a positive diagonal: J'J was
+        # singular and rounding dodged LAPACK's zero pivot (two sightings of one flag).
+        return x, y, th, None
     return x, y, th, cov
 
 

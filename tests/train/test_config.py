@@ -118,6 +118,8 @@ def test_whole_group_override() -> None:
         ({"run.eval_teams": ("random", "robots")}, ["run.eval_teams", "naive", "teamwork"]),
         ({"run.iterations_per_chunk": 0}, ["run.iterations_per_chunk"]),
         ({"run.seed": 1.5}, ["run.seed"]),
+        ({"run.max_minutes": -5.0}, ["run.max_minutes=-5.0", ">= 0"]),
+        ({"run.max_minutes": float("inf")}, ["run.max_minutes=inf", "finite"]),
     ],
 )
 def test_bad_values_name_the_field(overrides: dict, words: list[str]) -> None:
@@ -218,7 +220,9 @@ def test_from_dict_rejects_unknown_and_missing_keys() -> None:
 def test_config_differences_ignore_host_loop_fields() -> None:
     saved = make_config("quickstart")
     longer = make_config(
-        "quickstart", **{"run.iterations": 500, "run.eval_every": 3, "run.run_dir": "elsewhere"}
+        "quickstart",
+        **{"run.iterations": 500, "run.eval_every": 3, "run.run_dir": "elsewhere",
+           "run.max_minutes": 30.0},
     )
     assert config_differences(saved, longer) == []
     other = make_config("quickstart", **{"ppo.learning_rate": 5e-4, "run.seed": 3})

@@ -330,6 +330,29 @@ def test_ctrl_c_writes_a_checkpoint_and_the_run_can_continue(tmp_path: Path) -> 
     assert finished.iteration == 6 and not finished.interrupted
 
 
+def test_time_budget_ends_the_run_like_a_finished_one_and_resume_extends_it(
+    tmp_path: Path,
+) -> None:
+    # A budget of a microsecond is spent by the first chunk (its compile alone takes longer).
+    config = tiny_config(
+        tmp_path, **{"run.iterations": 6, "run.eval_every": 0, "run.max_minutes": 1e-8}
+    )
+    result = train(config, progress=False)
+    assert result.out_of_time and not result.interrupted
+    assert result.iteration == 2  # one chunk, then the budget check between chunks
+    assert Checkpointer(tmp_path / CHECKPOINT_DIR).all_steps() == [2]
+    assert "time budget reached" in (tmp_path / "events.log").read_text()
+    # The end of a finished run: the final evaluation ran.
+    assert "eval/random/outcome" in result.evaluation
+    # A resumed run counts the time already spent: the same budget ends it at once ...
+    again = train(config, resume=True, progress=False)
+    assert again.out_of_time and again.iteration == 2
+    # ... and a larger one (a resumable field) lets it finish.
+    more = dataclasses.replace(config, run=dataclasses.replace(config.run, max_minutes=600.0))
+    finished = train(more, resume=True, progress=False)
+    assert finished.iteration == 6 and not finished.out_of_time
+
+
 def test_train_writes_logs_plot_gif_and_checkpoint(tmp_path: Path) -> None:
     config = tiny_config(
         tmp_path,

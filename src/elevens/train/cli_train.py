@@ -7,6 +7,7 @@ is a flag, e.g.::
     elevens train quickstart
     elevens train 2v2 --ppo.learning-rate 3e-4 --run.run-dir runs/a
     elevens train --resume 2v2 --run.run-dir runs/a --run.iterations 8000
+    elevens train 2v2 --run.max-minutes 60     # ends like a finished run after an hour
 
 Heavy imports (JAX, the trainer) happen inside the commands, so ``elevens --help`` stays fast.
 """
@@ -77,7 +78,12 @@ def train_command(args: TrainArgs) -> Any:
 
     config = args.config.validate()
     result = train(config, resume=args.resume, progress=args.progress)
-    state = "interrupted (Ctrl-C or SIGTERM)" if result.interrupted else "done"
+    if result.interrupted:
+        state = "interrupted (Ctrl-C or SIGTERM)"
+    elif result.out_of_time:
+        state = f"time budget of {config.run.max_minutes:g} min reached"
+    else:
+        state = "done"
     print(
         f"{state}: {result.iteration} iterations, {result.env_steps:,} env steps in "
         f"{result.wall_s / 60:.1f} min"

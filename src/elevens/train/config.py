@@ -182,6 +182,10 @@ class RunConfig:
 
     iterations: int = 5000
     """Learner iterations (one iteration = one episode in every game, then the PPO epochs)."""
+    max_minutes: float = 0.0
+    """Training time budget: the run ends like a finished one (final evaluation, checkpoint,
+    curve, GIF) at the first chunk end where ``time/hours`` (compiling, chunks and evaluations,
+    summed over resumed sessions) reaches it, even before ``iterations``. 0: no budget."""
     games_per_iteration: int = 330
     """Games played per iteration, all at once (vmapped). The learner plays side 0 in the first
     ceil(G / 2) of them and side 1 in the rest. 330 x 2 players = table 6.1's batch of 660."""
@@ -641,6 +645,11 @@ def _validate_opponent(opponent: OpponentConfig) -> None:
 
 def _validate_run(run: RunConfig) -> None:
     _int_at_least("run.iterations", run.iterations, 1)
+    _require(
+        _is_number(run.max_minutes) and math.isfinite(run.max_minutes) and run.max_minutes >= 0,
+        f"run.max_minutes={run.max_minutes!r} is invalid: it must be a finite number of "
+        "minutes >= 0 (0: no time budget)",
+    )
     _int_at_least("run.games_per_iteration", run.games_per_iteration, 1)
     _int_at_least("run.iterations_per_chunk", run.iterations_per_chunk, 1)
     _int_at_least("run.eval_every", run.eval_every, 0)
@@ -721,6 +730,7 @@ def load_config(path: str | Path) -> TrainConfig:
 RESUMABLE_FIELDS: tuple[str, ...] = (
     "preset",
     "run.iterations",
+    "run.max_minutes",
     "run.iterations_per_chunk",
     "run.eval_every",
     "run.eval_games",

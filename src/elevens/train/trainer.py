@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
 import time
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -585,6 +586,8 @@ class TrainResult:
     """Game steps played (exact)."""
     interrupted: bool
     """True if Ctrl-C stopped the run (a checkpoint was still written)."""
+    out_of_time: bool
+    """True if ``run.max_minutes`` ended the run before ``run.iterations``."""
     run_dir: Path
     checkpoint: Path | None
     """The last checkpoint's directory."""
@@ -706,6 +709,8 @@ def train(
     evaluation: dict[str, float] = {}
     evaluated_at: int | None = None
     interrupted = False
+    budget_s = run.max_minutes * 60.0 if run.max_minutes > 0 else math.inf
+    out_of_time = False
     checkpoint_path: Path | None = None
 
     def save(current: TrainState) -> Path | None:
@@ -752,6 +757,14 @@ def train(
                 evaluation = run_eval(state)
                 evaluated_at = 0
             while iteration < run.iterations:
+                if train_seconds >= budget_s:
+                    out_of_time = True
+                    logger.event(
+                        iteration,
+                        f"time budget reached: {train_seconds / 60:.1f} of "
+                        f"run.max_minutes={run.max_minutes:g} min",
+                    )
+                    break
                 count = min(run.iterations_per_chunk, run.iterations - iteration)
                 began = time.perf_counter()
                 new_state, metrics = trainer.update(state, count)
@@ -808,6 +821,7 @@ def train(
         iteration=int(state.iteration),
         env_steps=int(state.iteration) * steps_per_iteration,
         interrupted=interrupted,
+        out_of_time=out_of_time,
         run_dir=run_dir,
         checkpoint=checkpoint_path,
         evaluation=evaluation,

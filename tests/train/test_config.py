@@ -34,7 +34,7 @@ def test_thesis_presets_use_table_6_1() -> None:
         config = make_config(preset)
         assert isinstance(config.ppo, PPOHyperparams)  # the ppo.py class, not a copy
         assert config.ppo.epochs == 5 and config.ppo.clip_epsilon == 0.1
-        assert config.ppo.entropy_weight == 0.01 and config.ppo.value_weight == 0.5
+        assert config.ppo.value_weight == 0.5
         assert config.env.episode_length == 400
         assert config.network.features == 64 and config.network.lstm_features == 32
     # 11 a side: table 6.1 exactly, whole games in a minibatch, 5 games = 55 sequences.
@@ -59,6 +59,7 @@ def test_2v2_preset_documents_how_to_get_table_6_1_back() -> None:
             "run.games_per_iteration": 330,
             "opponent.polyak_tau": 0.01,
             "env.shaping_schedule": True,
+            "ppo.entropy_weight": 0.01,
         },
     )
     assert table.ppo == PPOHyperparams()
@@ -69,6 +70,7 @@ def test_2v2_preset_documents_how_to_get_table_6_1_back() -> None:
     tuned = make_config("2v2")
     assert tuned.ppo.advantage_estimator == "gae" and tuned.ppo.normalize_advantages
     assert tuned.opponent.kind == "polyak" and tuned.opponent.polyak_tau == 0.05
+    assert tuned.ppo.entropy_weight == 1e-3
 
 
 def test_dotted_and_double_underscore_overrides() -> None:
@@ -265,8 +267,11 @@ def test_cli_train_validates_before_compiling(capsys: pytest.CaptureFixture[str]
         train_command(tyro.cli(TrainArgs, args=["11v11", "--ppo.learning-rate", "-0.1"]))
     assert exit_info.value.code == 2
     assert "learning_rate=-0.1 is invalid" in capsys.readouterr().err
-    # A value only the whole config can judge is refused by validate() in train_command.
+    # A value only the whole config can judge is refused by validate() in train_command, also
+    # as a usage error (no traceback).
     args = tyro.cli(TrainArgs, args=["11v11", "--run.games-per-iteration", "7"])
-    with pytest.raises(ValueError, match="games_per_iteration|minibatch|batch_size"):
+    with pytest.raises(SystemExit) as exit_info:
         train_command(args)
+    assert exit_info.value.code == 2
+    assert "elevens train: error: ppo.batch_size=660 is invalid" in capsys.readouterr().err
     assert time.perf_counter() - start < 0.5

@@ -15,6 +15,7 @@ Heavy imports (JAX, the trainer) happen inside the commands, so ``elevens --help
 from __future__ import annotations
 
 import dataclasses
+import sys
 from typing import TYPE_CHECKING, Annotated, Any, Union
 
 import tyro
@@ -76,7 +77,12 @@ def train_command(args: TrainArgs) -> Any:
     """Validate (before anything compiles), train, and print a summary. Returns TrainResult."""
     from elevens.train.trainer import train
 
-    config = args.config.validate()
+    try:
+        config = args.config.validate()
+    except ValueError as error:
+        # A usage error like the ones tyro reports for a single field: no traceback, exit 2.
+        print(f"elevens train: error: {error}", file=sys.stderr)
+        raise SystemExit(2) from None
     result = train(config, resume=args.resume, progress=args.progress)
     if result.interrupted:
         state = "interrupted (Ctrl-C or SIGTERM)"

@@ -333,7 +333,7 @@ def test_ctrl_c_writes_a_checkpoint_and_the_run_can_continue(tmp_path: Path) -> 
 def test_time_budget_ends_the_run_like_a_finished_one_and_resume_extends_it(
     tmp_path: Path,
 ) -> None:
-    # A budget of a microsecond is spent by the first chunk (its compile alone takes longer).
+    # A budget of 1e-8 min (0.6 us) is spent by the first chunk (its compile alone takes longer).
     config = tiny_config(
         tmp_path, **{"run.iterations": 6, "run.eval_every": 0, "run.max_minutes": 1e-8}
     )

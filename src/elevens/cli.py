@@ -26,7 +26,13 @@ from elevens.robocup.cli_robocup import (
     RoboCupTrainArgs,
     run_robocup_command,
 )
-from elevens.train.cli_train import TrainArgs, TrainBenchArgs, bench_train_command, train_command
+from elevens.train.cli_train import (
+    TrainArgs,
+    TrainBenchArgs,
+    bench_train_command,
+    command_flags_first,
+    train_command,
+)
 
 TEAM_NAMES = ("random", "naive", "teamwork")
 
@@ -126,6 +132,8 @@ def main(argv: list[str] | None = None) -> None:
     # `elevens bench env ...` reads better than a hyphenated subcommand; accept both.
     if len(argv) >= 2 and argv[0] in ("bench", "robocup") and not argv[1].startswith("-"):
         argv = [f"{argv[0]}-{argv[1]}", *argv[2:]]
+    if argv and argv[0] == "train":
+        argv = ["train", *command_flags_first(argv[1:])]
     args = tyro.cli(Command, args=argv, prog="elevens")
     # SIGTERM (kill, a job scheduler) takes Ctrl-C's path: a training run (simulator or
     # RoboCup) writes its checkpoint, and every rcssserver a command started is stopped.

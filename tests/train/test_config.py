@@ -237,7 +237,7 @@ def test_config_differences_ignore_host_loop_fields() -> None:
 def test_cli_args_parse_a_preset_with_flag_overrides() -> None:
     import tyro
 
-    from elevens.train.cli_train import TrainArgs, TrainBenchArgs
+    from elevens.train.cli_train import TrainArgs, TrainBenchArgs, command_flags_first
 
     args = tyro.cli(
         TrainArgs,
@@ -250,6 +250,12 @@ def test_cli_args_parse_a_preset_with_flag_overrides() -> None:
     assert args.config.ppo.epochs == 5  # the preset's value where no flag is given
     assert args.config.opponent.kind == "league"
     assert args.config.run.run_dir == "runs/x"
+    # The command's own flags may follow the preset too (moved in front before tyro parses).
+    after = tyro.cli(
+        TrainArgs, args=command_flags_first(["2v2", "--run.seed", "3", "--resume", "--no-progress"])
+    )
+    assert after.resume and not after.progress
+    assert after.config.preset == "2v2" and after.config.run.seed == 3
     default = tyro.cli(TrainArgs, args=[])
     assert default.config == make_config("quickstart")
     bench = tyro.cli(TrainBenchArgs, args=["--players", "1", "--json"])

@@ -17,6 +17,7 @@ import pytest
 
 from elevens.train import trainer as trainer_module
 from elevens.train.checkpoint import Checkpointer
+from elevens.train.cli_train import TrainArgs, train_command
 from elevens.train.config import TrainConfig, make_config
 from elevens.train.logging import read_metrics_csv
 from elevens.train.trainer import (
@@ -26,6 +27,7 @@ from elevens.train.trainer import (
     make_trainer,
     train,
 )
+from tests.train.test_checkpoint import files_under, largest_array_file
 
 BASE = {
     # 1 v 1 on a 30 x 21 field (goal 14 wide), 64-step episodes, 64 games an iteration, a small
@@ -300,6 +302,41 @@ def test_resume_refuses_another_config_and_fresh_runs_refuse_old_dirs(tmp_path: 
     longer = dataclasses.replace(config, run=dataclasses.replace(config.run, iterations=3))
     with pytest.warns(UserWarning, match="opponent.league_window"):
         assert train(longer, resume=True, progress=False).iteration == 3
+
+
+# Orbax reports the damaged read from a background thread after the test (as in
+# test_checkpoint); the behaviour checked here is the exit code, the message and the files.
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
+def test_train_command_reports_refusals_and_damage_as_errors_and_keeps_the_files(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config = tiny_config(tmp_path, **{"run.iterations": 2, "run.eval_every": 0})
+    train(config, progress=False)
+    checkpoints = tmp_path / CHECKPOINT_DIR
+    before = files_under(checkpoints)
+    changed = dataclasses.replace(config, ppo=dataclasses.replace(config.ppo, learning_rate=0.5))
+    longer = dataclasses.replace(config, run=dataclasses.replace(config.run, iterations=3))
+    refusals = [
+        (TrainArgs(config=config, progress=False), "already holds checkpoints"),
+        (TrainArgs(config=changed, resume=True, progress=False), "ppo.learning_rate: 0.003"),
+    ]
+    for args, message in refusals:
+        with pytest.raises(SystemExit) as exit_info:
+            train_command(args)
+        assert exit_info.value.code == 2
+        error = capsys.readouterr().err
+        assert error.startswith("elevens train: error: ") and message in error
+        assert "Traceback" not in error
+    assert files_under(checkpoints) == before
+    # A damaged checkpoint: exit code 1, the message names the damage, nothing is deleted.
+    data_file = largest_array_file(checkpoints / "2")
+    data_file.write_bytes(data_file.read_bytes()[:16])
+    damaged = files_under(checkpoints)
+    with pytest.raises(SystemExit) as exit_info:
+        train_command(TrainArgs(config=longer, resume=True, progress=False))
+    assert exit_info.value.code == 1
+    assert "elevens train: error: corrupt checkpoint" in capsys.readouterr().err
+    assert files_under(checkpoints) == damaged
 
 
 def test_ctrl_c_writes_a_checkpoint_and_the_run_can_continue(tmp_path: Path) -> None:

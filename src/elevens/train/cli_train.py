@@ -1,12 +1,12 @@
 """The `elevens train` and `elevens bench train` subcommands (wired into ``elevens.cli``).
 
-``elevens train [--resume] [--no-progress] PRESET [--group.field VALUE ...]``: the preset is a
+``elevens train PRESET [--resume] [--no-progress] [--group.field VALUE ...]``: the preset is a
 tyro subcommand whose defaults are that preset's ``TrainConfig``, and every field of the config
-is a flag, e.g.::
+is a flag (``--resume`` and ``--no-progress`` may also come before the preset), e.g.::
 
     elevens train quickstart
     elevens train 2v2 --ppo.learning-rate 3e-4 --run.run-dir runs/a
-    elevens train --resume 2v2 --run.run-dir runs/a --run.iterations 8000
+    elevens train 2v2 --resume --run.run-dir runs/a --run.iterations 8000
     elevens train 2v2 --run.max-minutes 60     # ends like a finished run after an hour
 
 Heavy imports (JAX, the trainer) happen inside the commands, so ``elevens --help`` stays fast.
@@ -16,7 +16,8 @@ from __future__ import annotations
 
 import dataclasses
 import sys
-from typing import TYPE_CHECKING, Annotated, Any, Union
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Annotated, Any, NoReturn, Union
 
 import tyro
 
@@ -75,15 +76,20 @@ class TrainBenchArgs:
 
 def train_command(args: TrainArgs) -> Any:
     """Validate (before anything compiles), train, and print a summary. Returns TrainResult."""
-    from elevens.train.trainer import train
+    from elevens.train.checkpoint import CheckpointError
+    from elevens.train.trainer import RunRefusedError, train
 
     try:
         config = args.config.validate()
     except ValueError as error:
         # A usage error like the ones tyro reports for a single field: no traceback, exit 2.
-        print(f"elevens train: error: {error}", file=sys.stderr)
-        raise SystemExit(2) from None
-    result = train(config, resume=args.resume, progress=args.progress)
+        _fail(error, 2)
+    try:
+        result = train(config, resume=args.resume, progress=args.progress)
+    except RunRefusedError as error:  # another run's checkpoints, or a mismatched resume
+        _fail(error, 2)
+    except CheckpointError as error:  # a damaged checkpoint: the message names the file
+        _fail(error, 1)
     if result.interrupted:
         state = "interrupted (Ctrl-C or SIGTERM)"
     elif result.out_of_time:
@@ -102,6 +108,23 @@ def train_command(args: TrainArgs) -> Any:
     for name, path in result.files.items():
         print(f"  {name}: {path}")
     return result
+
+
+def _fail(error: Exception, code: int) -> NoReturn:
+    print(f"elevens train: error: {error}", file=sys.stderr)
+    raise SystemExit(code) from None
+
+
+COMMAND_FLAGS = ("--resume", "--no-resume", "--progress", "--no-progress")
+"""TrainArgs' own flags; tyro takes them only before the preset."""
+
+
+def command_flags_first(args: Sequence[str]) -> list[str]:
+    """The arguments of `elevens train` with its own flags (``COMMAND_FLAGS``) moved in front
+    of the preset, so that ``elevens train 2v2 --resume`` works like ``elevens train --resume
+    2v2``. The order of everything else is kept."""
+    own = [arg for arg in args if arg in COMMAND_FLAGS]
+    return own + [arg for arg in args if arg not in COMMAND_FLAGS]
 
 
 def bench_train_command(args: TrainBenchArgs) -> Any:

@@ -562,6 +562,11 @@ def _build_trainer(config: TrainConfig) -> Trainer:
 
 
 CHECKPOINT_DIR = "checkpoints"
+
+
+class RunRefusedError(ValueError):
+    """``train`` will not start: the run directory holds another run's checkpoints, or a resume
+    does not match them. Raised before anything compiles, and nothing saved is touched."""
 LEARNING_CURVE = "learning_curve.png"
 GIF_NAME = "learner_vs_naive.gif"
 CONFIG_JSON = "config.json"
@@ -684,7 +689,7 @@ def train(
     # Refuse a mismatched resume (or an overwrite) before anything compiles.
     latest = checkpointer.latest_step()
     if latest is not None and not resume:
-        raise ValueError(
+        raise RunRefusedError(
             f"{checkpointer.directory} already holds checkpoints (latest: iteration {latest}); "
             "pass resume=True (--resume) to continue that run, or choose another run.run_dir"
         )
@@ -845,19 +850,19 @@ def _title(config: TrainConfig) -> str:
 
 
 def _check_resumable(checkpointer: Any, config: TrainConfig) -> None:
-    """Raise ``ValueError`` unless the latest checkpoint's config matches ``config`` (outside
+    """Raise ``RunRefusedError`` unless the latest checkpoint's config matches ``config`` (outside
     ``RESUMABLE_FIELDS``), listing every difference."""
     saved_dict = checkpointer.read_config()
     try:
         saved = TrainConfig.from_dict(saved_dict, fill_missing=True)
     except (TypeError, ValueError) as error:
-        raise ValueError(
+        raise RunRefusedError(
             f"cannot resume from {checkpointer.directory}: its config.json does not describe a "
             f"TrainConfig of this version ({error})"
         ) from error
     differences = config_differences(saved, config)
     if differences:
-        raise ValueError(
+        raise RunRefusedError(
             f"cannot resume from {checkpointer.directory}: the config differs from the "
             "checkpoint's in fields that change what is computed:\n  "
             + "\n  ".join(differences)

@@ -686,25 +686,30 @@ def train(
     run_dir = Path(run.run_dir)
     checkpointer = Checkpointer(run_dir / CHECKPOINT_DIR, max_to_keep=run.keep_checkpoints)
     steps_per_iteration = config.env_steps_per_iteration
-    # Refuse a mismatched resume (or an overwrite) before anything compiles.
-    latest = checkpointer.latest_step()
-    if latest is not None and not resume:
-        raise RunRefusedError(
-            f"{checkpointer.directory} already holds checkpoints (latest: iteration {latest}); "
-            "pass resume=True (--resume) to continue that run, or choose another run.run_dir"
-        )
-    resuming = resume and latest is not None
-    if resuming:
-        _check_resumable(checkpointer, config)
-
-    trainer = make_trainer(config)
-    state = trainer.init(jax.random.key(run.seed))
     train_seconds = 0.0  # wall time spent in chunks and evaluation, over all sessions of the run
     shaping_off_at: int | None = None
-    if resuming:
-        state, _, meta = checkpointer.restore(state)
-        train_seconds = float(meta.get("train_seconds", 0.0))
-        shaping_off_at = meta.get("shaping_off_iteration")
+    try:
+        # Refuse a mismatched resume (or an overwrite) before anything compiles.
+        latest = checkpointer.latest_step()
+        if latest is not None and not resume:
+            raise RunRefusedError(
+                f"{checkpointer.directory} already holds checkpoints (latest: iteration "
+                f"{latest}); pass resume=True (--resume) to continue that run, or choose another "
+                "run.run_dir"
+            )
+        resuming = resume and latest is not None
+        if resuming:
+            _check_resumable(checkpointer, config)
+        trainer = make_trainer(config)
+        state = trainer.init(jax.random.key(run.seed))
+        if resuming:
+            state, _, meta = checkpointer.restore(state)
+            train_seconds = float(meta.get("train_seconds", 0.0))
+            shaping_off_at = meta.get("shaping_off_iteration")
+    except BaseException:
+        # Closed here, not left to the garbage collector with Orbax's background thread.
+        checkpointer.close()
+        raise
     run_dir.mkdir(parents=True, exist_ok=True)
     (run_dir / CONFIG_JSON).write_text(config.to_json(), encoding="utf-8")
 

@@ -566,11 +566,6 @@ def _build_trainer(config: TrainConfig) -> Trainer:
 
 
 CHECKPOINT_DIR = "checkpoints"
-
-
-class RunRefusedError(ValueError):
-    """``train`` will not start: the run directory holds another run's checkpoints, or a resume
-    does not match them. Raised before anything compiles, and nothing saved is touched."""
 LEARNING_CURVE = "learning_curve.png"
 GIF_NAME = "learner_vs_naive.gif"
 CONFIG_JSON = "config.json"
@@ -581,6 +576,11 @@ PROGRESS_METRICS = (
     "eval/naive/outcome",
     "eval/teamwork/outcome",
 )
+
+
+class RunRefusedError(ValueError):
+    """``train`` will not start: the run directory holds another run's checkpoints, or a resume
+    does not match them. Raised before anything compiles, and nothing saved is touched."""
 
 
 @dataclasses.dataclass
@@ -675,8 +675,9 @@ def train(
         config: the run; validated before anything compiles.
         resume: continue from the latest checkpoint of ``run.run_dir``. Its config must match
             this one except for the fields of ``config.RESUMABLE_FIELDS`` (e.g. more iterations),
-            else ``ValueError`` lists the differences. Without a checkpoint the run starts fresh.
-            Without ``resume``, a run_dir that already holds checkpoints is an error.
+            else ``RunRefusedError`` (a ``ValueError``) lists the differences. Without a
+            checkpoint the run starts fresh. Without ``resume``, a run_dir that already holds
+            checkpoints is a ``RunRefusedError``; a damaged checkpoint is a ``CheckpointError``.
         progress: show the progress bar (or plain progress lines when not on a terminal).
         on_chunk: called after each chunk's logging with the new state and the last iteration's
             metrics (tests use it; raising KeyboardInterrupt there acts as a Ctrl-C).

@@ -25,6 +25,7 @@ from elevens.cli import main
 from elevens.env.soccer import Soccer
 from elevens.robocup.play import load_robocup_team, play_robocup
 from elevens.robocup.train import EPISODES_CSV, RoboCupTrainConfig, play_iteration, train_robocup
+from elevens.train.checkpoint import Checkpointer
 from elevens.train.logging import read_metrics_csv
 from elevens.train.trainer import make_trainer
 from tests.robocup.conftest import needs_rcssserver, wait_stopped
@@ -231,6 +232,22 @@ def test_cli_says_how_to_install_a_missing_server(
     assert exit_info.value.code == 2
     err = capsys.readouterr().err
     assert "rcssserver was not found" in err and "github.com/rcsoccersim/rcssserver" in err
+
+
+def test_cli_train_refuses_another_runs_directory_without_a_traceback(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    with Checkpointer(tmp_path / "checkpoints") as checkpointer:
+        checkpointer.save(3, {"x": np.zeros(2)}, config={})
+    before = sorted(p.name for p in (tmp_path / "checkpoints").iterdir())
+    # Any executable passes the binary check; the refusal comes before a server starts.
+    with pytest.raises(SystemExit) as exit_info:
+        main(["robocup", "train", "--run-dir", str(tmp_path), "--rcssserver", sys.executable])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert err.startswith("elevens robocup train: error: ") and "already holds checkpoints" in err
+    assert "Traceback" not in err
+    assert sorted(p.name for p in (tmp_path / "checkpoints").iterdir()) == before
 
 
 @needs_rcssserver

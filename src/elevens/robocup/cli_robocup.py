@@ -10,6 +10,7 @@ import json as json_lib
 import sys
 import time
 from dataclasses import asdict, dataclass
+from typing import NoReturn
 
 from elevens.robocup.server import RcssserverNotFound, find_rcssserver
 
@@ -112,8 +113,12 @@ def _binary(path: str | None) -> str:
     try:
         return find_rcssserver(path)
     except RcssserverNotFound as error:
-        print(f"elevens robocup: {error}", file=sys.stderr)
-        raise SystemExit(2) from None
+        _fail("elevens robocup", error, 2)
+
+
+def _fail(command: str, error: Exception, code: int) -> NoReturn:
+    print(f"{command}: {error}", file=sys.stderr)
+    raise SystemExit(code) from None
 
 
 def serve(args: RoboCupServeArgs) -> None:
@@ -163,6 +168,8 @@ def play(args: RoboCupPlayArgs) -> None:
 
 def train(args: RoboCupTrainArgs) -> None:
     from elevens.robocup.train import RoboCupTrainConfig, train_robocup
+    from elevens.train.checkpoint import CheckpointError
+    from elevens.train.trainer import RunRefusedError
 
     binary = _binary(args.rcssserver)
     config = RoboCupTrainConfig(
@@ -172,7 +179,12 @@ def train(args: RoboCupTrainArgs) -> None:
         run_dir=args.run_dir, rcssserver=binary, checkpoint_every=args.checkpoint_every,
         seed=args.seed,
     )
-    result = train_robocup(config, resume=args.resume)
+    try:
+        result = train_robocup(config, resume=args.resume)
+    except RunRefusedError as error:  # another run's checkpoints in --run-dir
+        _fail("elevens robocup train: error", error, 2)
+    except CheckpointError as error:  # a damaged checkpoint: the message names the file
+        _fail("elevens robocup train: error", error, 1)
     print(
         f"robocup train: {result.iterations} iterations, {result.env_steps} env steps, "
         f"{result.episodes} episodes, {result.restarts} server restarts in {result.wall_s:.0f} s; "

@@ -359,7 +359,7 @@ def train_robocup(
     checkpoint of ``run_dir``."""
     from elevens.train.checkpoint import Checkpointer
     from elevens.train.logging import RunLogger
-    from elevens.train.trainer import TrainState, make_trainer
+    from elevens.train.trainer import RunRefusedError, TrainState, make_trainer
 
     began = time.perf_counter()
     train_config = config.train_config()
@@ -372,7 +372,8 @@ def train_robocup(
     checkpointer = Checkpointer(run_dir / "checkpoints", max_to_keep=3)
     latest = checkpointer.latest_step()
     if latest is not None and not resume:
-        raise ValueError(
+        checkpointer.close()
+        raise RunRefusedError(
             f"{checkpointer.directory} already holds checkpoints (latest: iteration {latest}); "
             "pass --resume to continue that run, or choose another --run-dir"
         )

@@ -22,6 +22,7 @@ from elevens.train.config import TrainConfig, make_config
 from elevens.train.logging import read_metrics_csv
 from elevens.train.trainer import (
     CHECKPOINT_DIR,
+    RunRefusedError,
     TrainState,
     evaluate,
     make_trainer,
@@ -286,33 +287,19 @@ def test_resume_is_bit_identical_to_an_uninterrupted_run(tmp_path: Path) -> None
     assert "eval/random/outcome" in curves  # the final evaluation
 
 
-def test_resume_refuses_another_config_and_fresh_runs_refuse_old_dirs(tmp_path: Path) -> None:
-    config = tiny_config(tmp_path, **{"run.iterations": 2, "run.eval_every": 0})
-    train(config, progress=False)
-    with pytest.raises(ValueError, match="resume=True"):
-        train(config, progress=False)
-    changed = dataclasses.replace(config, ppo=dataclasses.replace(config.ppo, learning_rate=0.5))
-    with pytest.raises(ValueError, match=r"ppo.learning_rate: 0.003 -> 0.5"):
-        train(changed, resume=True, progress=False)
-    # A checkpoint of an older version, which had no opponent.league_window, still resumes.
-    for saved in (tmp_path / CHECKPOINT_DIR).rglob("config.json"):
-        old = json.loads(saved.read_text())
-        del old["opponent"]["league_window"]
-        saved.write_text(json.dumps(old))
-    longer = dataclasses.replace(config, run=dataclasses.replace(config.run, iterations=3))
-    with pytest.warns(UserWarning, match="opponent.league_window"):
-        assert train(longer, resume=True, progress=False).iteration == 3
-
-
-def test_train_command_reports_refusals_and_damage_as_errors_and_keeps_the_files(
+def test_resume_refuses_another_config_and_fresh_runs_refuse_old_dirs(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     config = tiny_config(tmp_path, **{"run.iterations": 2, "run.eval_every": 0})
     train(config, progress=False)
     checkpoints = tmp_path / CHECKPOINT_DIR
     before = files_under(checkpoints)
+    with pytest.raises(RunRefusedError, match="resume=True"):
+        train(config, progress=False)
     changed = dataclasses.replace(config, ppo=dataclasses.replace(config.ppo, learning_rate=0.5))
-    longer = dataclasses.replace(config, run=dataclasses.replace(config.run, iterations=3))
+    with pytest.raises(RunRefusedError, match=r"ppo.learning_rate: 0.003 -> 0.5"):
+        train(changed, resume=True, progress=False)
+    # The command reports both as usage errors, without a traceback.
     refusals = [
         (TrainArgs(config=config, progress=False), "already holds checkpoints"),
         (TrainArgs(config=changed, resume=True, progress=False), "ppo.learning_rate: 0.003"),
@@ -325,14 +312,23 @@ def test_train_command_reports_refusals_and_damage_as_errors_and_keeps_the_files
         assert error.startswith("elevens train: error: ") and message in error
         assert "Traceback" not in error
     assert files_under(checkpoints) == before
+    # A checkpoint of an older version, which had no opponent.league_window, still resumes.
+    for saved in checkpoints.rglob("config.json"):
+        old = json.loads(saved.read_text())
+        del old["opponent"]["league_window"]
+        saved.write_text(json.dumps(old))
+    longer = dataclasses.replace(config, run=dataclasses.replace(config.run, iterations=3))
+    with pytest.warns(UserWarning, match="opponent.league_window"):
+        assert train(longer, resume=True, progress=False).iteration == 3
     # A damaged checkpoint: exit code 1, the message names the file, nothing is deleted. (The
     # list of leaves is damaged: it is read before Orbax's, whose damaged reads test_checkpoint
     # covers.)
-    tree_file = checkpoints / "2" / "tree" / TREE_FILE
+    tree_file = checkpoints / "3" / "tree" / TREE_FILE
     tree_file.write_text("{not json", encoding="utf-8")
     damaged = files_under(checkpoints)
+    even_longer = dataclasses.replace(config, run=dataclasses.replace(config.run, iterations=4))
     with pytest.raises(SystemExit) as exit_info:
-        train_command(TrainArgs(config=longer, resume=True, progress=False))
+        train_command(TrainArgs(config=even_longer, resume=True, progress=False))
     assert exit_info.value.code == 1
     error = capsys.readouterr().err
     assert "elevens train: error: corrupt checkpoint: cannot parse JSON file" in error

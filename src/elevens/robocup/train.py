@@ -370,18 +370,22 @@ def train_robocup(
         train_config = dataclasses.replace(train_config, network=source.network).validate()
     run_dir = Path(config.run_dir)
     checkpointer = Checkpointer(run_dir / "checkpoints", max_to_keep=3)
-    latest = checkpointer.latest_step()
-    if latest is not None and not resume:
+    try:
+        latest = checkpointer.latest_step()
+        if latest is not None and not resume:
+            raise RunRefusedError(
+                f"{checkpointer.directory} already holds checkpoints (latest: iteration "
+                f"{latest}); pass --resume to continue that run, or choose another --run-dir"
+            )
+        trainer = make_trainer(train_config)
+        state: TrainState = trainer.init(jax.random.key(config.seed))
+        if latest is not None:
+            state, _, _ = checkpointer.restore(state)
+    except BaseException:
+        # Closed here, as train() does, not left to the garbage collector.
         checkpointer.close()
-        raise RunRefusedError(
-            f"{checkpointer.directory} already holds checkpoints (latest: iteration {latest}); "
-            "pass --resume to continue that run, or choose another --run-dir"
-        )
-    trainer = make_trainer(train_config)
-    state: TrainState = trainer.init(jax.random.key(config.seed))
-    if latest is not None:
-        state, _, _ = checkpointer.restore(state)
-    elif source_params is not None:
+        raise
+    if latest is None and source_params is not None:
         polyak = state.opponent.polyak
         assert polyak is not None
         state = state.replace(

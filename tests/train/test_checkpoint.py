@@ -149,6 +149,27 @@ def test_round_trip_is_bit_identical(tmp_path: Path) -> None:
     assert [type(x) for x in restored["history"]] == [np.float32, int, float, bool]
 
 
+def test_restored_arrays_keep_the_targets_placement(tmp_path: Path) -> None:
+    # Uncommitted leaves (a fresh init) come back uncommitted, so a jitted step compiled for the
+    # fresh state runs the restored one without compiling again; committed ones stay committed.
+    fresh = {"w": jnp.arange(6.0), "key": jax.random.key(1)}
+    device = jax.devices()[0]
+    placed = {"w": jax.device_put(jnp.arange(6.0), device)}
+    checkpointer = Checkpointer(tmp_path)
+    checkpointer.save(0, {"fresh": fresh, "placed": placed}, {})
+    restored, _, _ = checkpointer.restore({"fresh": fresh, "placed": placed})
+    checkpointer.close()
+    assert not restored["fresh"]["w"].committed and not restored["fresh"]["key"].committed
+    assert restored["placed"]["w"].committed and restored["placed"]["w"].devices() == {device}
+
+    @jax.jit
+    def step(state: dict[str, jax.Array]) -> jax.Array:
+        return state["w"] * jax.random.uniform(state["key"])
+
+    np.testing.assert_array_equal(step(restored["fresh"]), step(fresh))
+    assert step._cache_size() == 1
+
+
 def test_restore_into_abstract_target(tmp_path: Path) -> None:
     state: dict[str, Any] = {
         "w": jnp.arange(6.0).reshape(2, 3),

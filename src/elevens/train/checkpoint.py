@@ -211,7 +211,7 @@ def _host_to_leaf(data: np.ndarray, entry: Mapping[str, Any], target: Any) -> An
     """Turns a restored host array back into the kind of leaf the target holds."""
     if entry["kind"] == _KIND_KEY:
         keys = jax.random.wrap_key_data(jnp.asarray(data), impl=entry["key_impl"])
-        sharding = getattr(target, "sharding", None)
+        sharding = _placement(target)
         return keys if sharding is None else jax.device_put(keys, sharding)
     if isinstance(target, bool | int | float | complex):
         return type(target)(data.item())
@@ -220,8 +220,18 @@ def _host_to_leaf(data: np.ndarray, entry: Mapping[str, Any], target: Any) -> An
     if isinstance(target, np.ndarray):
         return data
     # jax.Array or jax.ShapeDtypeStruct: put it back where the target lives (if it says).
-    sharding = getattr(target, "sharding", None)
+    sharding = _placement(target)
     return jax.device_put(data) if sharding is None else jax.device_put(data, sharding)
+
+
+def _placement(target: Any) -> Any:
+    """The sharding to restore a leaf onto: the target's, or None (the default device,
+    uncommitted) for an uncommitted array. A restored state then has the same jit cache key as a
+    fresh one (committed arrays are another key): a resume in the process that started the run
+    does not compile the training chunk again."""
+    if isinstance(target, jax.Array) and not target.committed:
+        return None
+    return getattr(target, "sharding", None)
 
 
 @dataclasses.dataclass(frozen=True)

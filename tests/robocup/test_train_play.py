@@ -27,7 +27,7 @@ from elevens.robocup.play import load_robocup_team, play_robocup
 from elevens.robocup.train import EPISODES_CSV, RoboCupTrainConfig, play_iteration, train_robocup
 from elevens.train.checkpoint import Checkpointer
 from elevens.train.logging import read_metrics_csv
-from elevens.train.trainer import make_trainer
+from elevens.train.trainer import RunRefusedError, make_trainer
 from tests.robocup.conftest import needs_rcssserver, wait_stopped
 
 
@@ -169,6 +169,15 @@ def test_train_writes_episodes_checkpoints_and_resumes(tmp_path: Path) -> None:
     # A second run into the same directory needs --resume, and then continues.
     with pytest.raises(ValueError, match="resume"):
         train_robocup(config, env_factory=factory)
+    # A resume whose networks, PPO or game sizes differ is refused with the list of differences,
+    # before any server starts.
+    other = small_config(tmp_path, iterations=3, episode_length=13, learning_rate=3e-4)
+    started = len(envs)
+    with pytest.raises(RunRefusedError) as refused:
+        train_robocup(other, resume=True, env_factory=factory)
+    assert "env.episode_length: 12 -> 13" in str(refused.value)
+    assert "ppo.learning_rate: 0.0001 -> 0.0003" in str(refused.value)
+    assert len(envs) == started
     more = small_config(tmp_path, iterations=3)
     resumed = train_robocup(more, resume=True, env_factory=factory, print_fn=lines.append)
     assert resumed.iterations == 3 and resumed.episodes == 2

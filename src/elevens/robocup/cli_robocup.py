@@ -10,9 +10,9 @@ import json as json_lib
 import sys
 import time
 from dataclasses import asdict, dataclass
-from typing import NoReturn
 
 from elevens.robocup.server import RcssserverNotFound, find_rcssserver
+from elevens.train.cli_train import exit_with_error
 
 
 @dataclass(frozen=True)
@@ -113,12 +113,7 @@ def _binary(path: str | None) -> str:
     try:
         return find_rcssserver(path)
     except RcssserverNotFound as error:
-        _fail("elevens robocup", error, 2)
-
-
-def _fail(command: str, error: Exception, code: int) -> NoReturn:
-    print(f"{command}: {error}", file=sys.stderr)
-    raise SystemExit(code) from None
+        exit_with_error("elevens robocup", error, 2)
 
 
 def serve(args: RoboCupServeArgs) -> None:
@@ -182,9 +177,9 @@ def train(args: RoboCupTrainArgs) -> None:
     try:
         result = train_robocup(config, resume=args.resume)
     except RunRefusedError as error:  # another run's checkpoints in --run-dir
-        _fail("elevens robocup train: error", error, 2)
+        exit_with_error("elevens robocup train: error", error, 2)
     except CheckpointError as error:  # a damaged checkpoint: the message names the file
-        _fail("elevens robocup train: error", error, 1)
+        exit_with_error("elevens robocup train: error", error, 1)
     print(
         f"robocup train: {result.iterations} iterations, {result.env_steps} env steps, "
         f"{result.episodes} episodes, {result.restarts} server restarts in {result.wall_s:.0f} s; "

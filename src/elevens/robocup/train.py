@@ -359,7 +359,12 @@ def train_robocup(
     checkpoint of ``run_dir``."""
     from elevens.train.checkpoint import Checkpointer
     from elevens.train.logging import RunLogger
-    from elevens.train.trainer import RunRefusedError, TrainState, make_trainer
+    from elevens.train.trainer import (
+        RunRefusedError,
+        TrainState,
+        check_resumable,
+        make_trainer,
+    )
 
     began = time.perf_counter()
     train_config = config.train_config()
@@ -377,6 +382,10 @@ def train_robocup(
                 f"{checkpointer.directory} already holds checkpoints (latest: iteration "
                 f"{latest}); pass --resume to continue that run, or choose another --run-dir"
             )
+        if latest is not None:
+            # The networks, PPO and game sizes must be the checkpoint's (a list of differences,
+            # not a shape error from the restore).
+            check_resumable(checkpointer, train_config)
         trainer = make_trainer(train_config)
         state: TrainState = trainer.init(jax.random.key(config.seed))
         if latest is not None:

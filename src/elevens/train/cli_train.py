@@ -83,13 +83,13 @@ def train_command(args: TrainArgs) -> Any:
         config = args.config.validate()
     except ValueError as error:
         # A usage error like the ones tyro reports for a single field: no traceback, exit 2.
-        _fail(error, 2)
+        exit_with_error("elevens train: error", error, 2)
     try:
         result = train(config, resume=args.resume, progress=args.progress)
     except RunRefusedError as error:  # another run's checkpoints, or a mismatched resume
-        _fail(error, 2)
+        exit_with_error("elevens train: error", error, 2)
     except CheckpointError as error:  # a damaged checkpoint: the message names the file
-        _fail(error, 1)
+        exit_with_error("elevens train: error", error, 1)
     if result.interrupted:
         state = "interrupted (Ctrl-C or SIGTERM)"
     elif result.out_of_time:
@@ -110,8 +110,10 @@ def train_command(args: TrainArgs) -> Any:
     return result
 
 
-def _fail(error: Exception, code: int) -> NoReturn:
-    print(f"elevens train: error: {error}", file=sys.stderr)
+def exit_with_error(prefix: str, error: Exception, code: int) -> NoReturn:
+    """Print ``prefix: error`` to stderr and exit with ``code``, without a traceback (the
+    commands' usage errors, exit 2, and damaged checkpoints, exit 1)."""
+    print(f"{prefix}: {error}", file=sys.stderr)
     raise SystemExit(code) from None
 
 

@@ -704,7 +704,7 @@ def train(
             )
         resuming = resume and latest is not None
         if resuming:
-            _check_resumable(checkpointer, config)
+            check_resumable(checkpointer, config)
         trainer = make_trainer(config)
         state = trainer.init(jax.random.key(run.seed))
         if resuming:
@@ -859,9 +859,10 @@ def _title(config: TrainConfig) -> str:
     )
 
 
-def _check_resumable(checkpointer: Any, config: TrainConfig) -> None:
+def check_resumable(checkpointer: Any, config: TrainConfig) -> None:
     """Raise ``RunRefusedError`` unless the latest checkpoint's config matches ``config`` (outside
-    ``RESUMABLE_FIELDS``), listing every difference."""
+    ``RESUMABLE_FIELDS``), listing every difference. Reads only config.json, so it runs before
+    anything compiles (``train`` and ``elevens robocup train`` call it on a resume)."""
     saved_dict = checkpointer.read_config()
     try:
         saved = TrainConfig.from_dict(saved_dict, fill_missing=True)
@@ -876,7 +877,7 @@ def _check_resumable(checkpointer: Any, config: TrainConfig) -> None:
             f"cannot resume from {checkpointer.directory}: the config differs from the "
             "checkpoint's in fields that change what is computed:\n  "
             + "\n  ".join(differences)
-            + "\nuse the checkpoint's values or another run.run_dir"
+            + "\nuse the checkpoint's values, or another run directory"
         )
 
 

@@ -460,6 +460,8 @@ def test_bench_train_json_fields(capsys: pytest.CaptureFixture[str]) -> None:
     results = run_train_bench(players=(1,), json=True, episode_length=8, repeats=1)
     record = json.loads(capsys.readouterr().out.strip())
     assert {"players", "steps_per_s", "env_share", "forward_share", "update_share"} <= set(record)
+    for name in ("host_matmul_gflops", "host_weight_gradient_gflops", "host_stream_gbps"):
+        assert 0 < record[name] < float("inf"), name
     assert record["players"] == 1 and record["steps_per_s"] > 0
     assert 0 < record["update_share"] < 1.5
     assert results[0].games == 660

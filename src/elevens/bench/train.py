@@ -16,6 +16,12 @@ Where the time goes is measured on the same data with separately compiled functi
 
 Shares are those times over the full iteration's; they need not sum to exactly 1 (the full
 iteration fuses the parts, and the opponent and shaping updates are not in any part).
+
+The same run times a host reference (``host_reference``): the two products of a per-entity
+64 x 64 layer on one 11 v 11 minibatch's compact rows (forward, and the weight gradient, which
+contracts the 75,776 rows) and a memory-bound pass (a sum over 64 MB). The update is bound by these,
+not by peak FLOPs, so they say how fast this machine is at what the update does; figures from
+different machines compare only beside them (docs/results/throughput.md).
 """
 
 from __future__ import annotations
@@ -28,6 +34,7 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 import jax
+import jax.numpy as jnp
 
 from elevens.bench.env import make_scan_runner
 from elevens.train.config import make_config
@@ -60,6 +67,58 @@ class TrainBenchResult:
     """First call of the full iteration (trace, compile, one run)."""
     repeats: int
     backend: str
+    host_matmul_gflops: float = float("nan")
+    """Host reference: f32 [75,776 x 64] x [64 x 64] (a per-entity layer's forward)."""
+    host_weight_gradient_gflops: float = float("nan")
+    """Host reference: f32 [64 x 75,776] x [75,776 x 64] (that layer's weight gradient)."""
+    host_stream_gbps: float = float("nan")
+    """Host reference: bytes read per second by a sum over a 64 MB array."""
+
+
+REFERENCE_ROWS = 75_776
+"""Compact per-entity rows of one 11 v 11 minibatch (55 sequences x 100 steps)."""
+
+
+@dataclass(frozen=True)
+class HostReference:
+    matmul_gflops: float
+    weight_gradient_gflops: float
+    stream_gbps: float
+
+
+def host_reference(rows: int = REFERENCE_ROWS, repeats: int = 20) -> HostReference:
+    """Medians over ``repeats`` of the reference computations (see the module doc)."""
+    width = 64
+    keys = jax.random.split(jax.random.key(0), 3)
+    x = jax.random.normal(keys[0], (rows, width))
+    grad = jax.random.normal(keys[1], (rows, width))
+    kernel = jax.random.normal(keys[2], (width, width))
+    stream = jnp.ones((16 * 1024 * 1024,), jnp.float32)  # 64 MB: beyond any cache
+    flops = 2.0 * rows * width * width
+    _, forward_s = _median_time(lambda: _forward(x, kernel), repeats)
+    _, gradient_s = _median_time(lambda: _weight_gradient(x, grad), repeats)
+    _, stream_s = _median_time(lambda: _stream(stream), repeats)
+    return HostReference(
+        matmul_gflops=flops / forward_s / 1e9,
+        weight_gradient_gflops=flops / gradient_s / 1e9,
+        stream_gbps=stream.nbytes / stream_s / 1e9,
+    )
+
+
+@jax.jit
+def _forward(x: jax.Array, kernel: jax.Array) -> jax.Array:
+    return x @ kernel
+
+
+@jax.jit
+def _weight_gradient(x: jax.Array, grad: jax.Array) -> jax.Array:
+    return x.T @ grad
+
+
+@jax.jit
+def _stream(x: jax.Array) -> jax.Array:
+    # A reduction: a new 64 MB output each call would time the page faults, not the memory.
+    return jnp.sum(x)
 
 
 def _median_time(run: Callable[[], Any], repeats: int) -> tuple[float, float]:
@@ -122,6 +181,7 @@ def bench_train(
         jax.random.split(jax.random.key(2), games), params
     )
     _, env_s = _median_time(lambda: runner(states, jax.random.key(3)), repeats)
+    reference = host_reference()
 
     return TrainBenchResult(
         players=players,
@@ -140,6 +200,9 @@ def bench_train(
         compile_s=compile_s,
         repeats=repeats,
         backend=jax.default_backend(),
+        host_matmul_gflops=reference.matmul_gflops,
+        host_weight_gradient_gflops=reference.weight_gradient_gflops,
+        host_stream_gbps=reference.stream_gbps,
     )
 
 
@@ -167,7 +230,10 @@ def run_train_bench(
                 f"({result.games} games x {result.episode_length} steps in "
                 f"{result.iteration_s:.2f} s, {result.epochs} epochs; compile "
                 f"{result.compile_s:.1f} s) | env {result.env_share:.1%}, forward "
-                f"{result.forward_share:.1%}, update {result.update_share:.1%}"
+                f"{result.forward_share:.1%}, update {result.update_share:.1%} | host: "
+                f"matmul {result.host_matmul_gflops:.0f} GFLOP/s, weight gradient "
+                f"{result.host_weight_gradient_gflops:.0f} GFLOP/s, stream "
+                f"{result.host_stream_gbps:.0f} GB/s"
             )
     return results
 

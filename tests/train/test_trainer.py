@@ -18,11 +18,12 @@ import pytest
 from elevens.train import trainer as trainer_module
 from elevens.train.checkpoint import TREE_FILE, Checkpointer
 from elevens.train.cli_train import TrainArgs, train_command
-from elevens.train.config import TrainConfig, make_config
+from elevens.train.config import TrainConfig, make_config, validate
 from elevens.train.logging import read_metrics_csv
 from elevens.train.trainer import (
     CHECKPOINT_DIR,
     RunRefusedError,
+    Trainer,
     TrainState,
     evaluate,
     make_trainer,
@@ -65,6 +66,13 @@ GAMES, STEPS = 64, 64
 
 def tiny_config(run_dir: Path | str = "unused", **overrides: Any) -> TrainConfig:
     return make_config("quickstart", **{**BASE, "run.run_dir": str(run_dir), **overrides})
+
+
+def uncached_trainer(config: TrainConfig) -> Trainer:
+    """A trainer built past make_trainer's small cache, so that tests which only trace, or which
+    patch module constants, do not evict the compiled trainers the other tests share."""
+    validate(config)
+    return trainer_module._build_trainer.__wrapped__(config)
 
 
 def leaves_equal(a: Any, b: Any) -> bool:
@@ -140,14 +148,12 @@ def test_compacted_update_equals_the_dense_update(monkeypatch: pytest.MonkeyPatc
     updates = []
     for fractions in ((), (1.0,), (0.05,)):
         monkeypatch.setattr(trainer_module, "VISIBLE_FRACTIONS", fractions)
-        trainer_module._build_trainer.cache_clear()
-        trainer = make_trainer(config)
+        trainer = uncached_trainer(config)  # reads the patched VISIBLE_FRACTIONS
         if not updates:  # one rollout for all three: the same init and data
             state = trainer.init(jax.random.key(0))
             data = jax.jit(trainer.collect)(state, jax.random.key(1))
         learned = jax.jit(trainer.learn)(state.params, state.opt_state, data, jax.random.key(2))
         updates.append(learned.update)
-    trainer_module._build_trainer.cache_clear()
     dense = updates[0]
     assert not leaves_equal(dense.params, state.params)
     for update in updates[1:]:
@@ -188,7 +194,7 @@ def test_polyak_freeze_rule_follows_the_mean_score() -> None:
 )
 def test_variants_trace(overrides: dict) -> None:
     # Tracing (eval_shape) checks every variant's shapes without paying for its compile.
-    trainer = make_trainer(tiny_config(**overrides))
+    trainer = uncached_trainer(tiny_config(**overrides))
     state = jax.eval_shape(trainer.init, jax.random.key(0))
     new_state, metrics = jax.eval_shape(trainer.update_chunk, state)
     assert str(jax.tree.structure(new_state)) == str(jax.tree.structure(state))
@@ -317,16 +323,17 @@ def test_resume_refuses_another_config_and_fresh_runs_refuse_old_dirs(
         old = json.loads(saved.read_text())
         del old["opponent"]["league_window"]
         saved.write_text(json.dumps(old))
-    longer = dataclasses.replace(config, run=dataclasses.replace(config.run, iterations=3))
+    # (One more chunk of K = 2: the compiled chunk serves it.)
+    longer = dataclasses.replace(config, run=dataclasses.replace(config.run, iterations=4))
     with pytest.warns(UserWarning, match="opponent.league_window"):
-        assert train(longer, resume=True, progress=False).iteration == 3
+        assert train(longer, resume=True, progress=False).iteration == 4
     # A damaged checkpoint: exit code 1, the message names the file, nothing is deleted. (The
     # list of leaves is damaged: it is read before Orbax's, whose damaged reads test_checkpoint
     # covers.)
-    tree_file = checkpoints / "3" / "tree" / TREE_FILE
+    tree_file = checkpoints / "4" / "tree" / TREE_FILE
     tree_file.write_text("{not json", encoding="utf-8")
     damaged = files_under(checkpoints)
-    even_longer = dataclasses.replace(config, run=dataclasses.replace(config.run, iterations=4))
+    even_longer = dataclasses.replace(config, run=dataclasses.replace(config.run, iterations=6))
     with pytest.raises(SystemExit) as exit_info:
         train_command(TrainArgs(config=even_longer, resume=True, progress=False))
     assert exit_info.value.code == 1

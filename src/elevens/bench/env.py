@@ -97,7 +97,8 @@ def bench_scan(
     if batch % devices:
         devices = 1
     reset_keys = jax.random.split(jax.random.key(0), batch)
-    states, _ = jax.vmap(env.reset, in_axes=(0, None))(reset_keys, params)
+    # Jitted: run eagerly, the reset compiles each of its hundreds of small ops on its own.
+    states, _ = jax.jit(jax.vmap(env.reset, in_axes=(0, None)))(reset_keys, params)
     if devices > 1:
         mesh = jax.sharding.Mesh(np.array(available[:devices]), ("games",))
         sharding = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("games"))
@@ -123,7 +124,7 @@ def bench_loop(players: int, steps: int = 200, repeats: int = 5) -> EnvBenchResu
     """Time a Python loop over a jitted single-game ``env.step`` with random actions."""
     env, params = elevens.make(f"{players}v{players}")
     step = jax.jit(env.step)
-    state, _ = env.reset(jax.random.key(0), params)
+    state, _ = jax.jit(env.reset)(jax.random.key(0), params)
     key = jax.random.key(1)
 
     def run() -> jax.Array:

@@ -177,7 +177,7 @@ def bench_train(
 
     env, params = trainer.env, trainer.env_params
     runner = make_scan_runner(env, params, games, episode_length)
-    states, _ = jax.vmap(env.reset, in_axes=(0, None))(
+    states, _ = jax.jit(jax.vmap(env.reset, in_axes=(0, None)))(
         jax.random.split(jax.random.key(2), games), params
     )
     _, env_s = _median_time(lambda: runner(states, jax.random.key(3)), repeats)

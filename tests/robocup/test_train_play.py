@@ -26,6 +26,7 @@ from elevens.env.soccer import Soccer
 from elevens.robocup.play import load_robocup_team, play_robocup
 from elevens.robocup.train import EPISODES_CSV, RoboCupTrainConfig, play_iteration, train_robocup
 from elevens.train.checkpoint import Checkpointer
+from elevens.train.config import make_config
 from elevens.train.logging import read_metrics_csv
 from elevens.train.trainer import RunRefusedError, make_trainer
 from tests.robocup.conftest import needs_rcssserver, wait_stopped
@@ -288,24 +289,39 @@ def test_server_naive_plays_random() -> None:
     assert results[0].steps == 60 and results[0].restarts == 0
 
 
-def test_init_from_a_checkpoint_starts_from_its_networks(tmp_path: Path) -> None:
+def test_init_from_a_checkpoint_starts_from_its_networks_and_resumes_with_them(
+    tmp_path: Path,
+) -> None:
     from elevens.robocup.train import load_source_params
 
-    source = small_config(tmp_path, iterations=1, run_dir=str(tmp_path / "source"))
-    train_robocup(source, env_factory=lambda i: SimEnv(1), print_fn=lambda _: None)
-    # No time to play: the run saves its starting point, which must be the source's networks.
-    target = small_config(
-        tmp_path, run_dir=str(tmp_path / "target"), init_from=str(tmp_path / "source"),
-        minutes=1e-9,
+    # A source with a non-default network, written by hand (an init, no training).
+    source_config = make_config(
+        "2v2",
+        **{"env.scenario": "1v1", "ppo.batch_size": 64, "network.features": 16,
+           "network.num_heads": 2, "network.lstm_features": 8},
     )
+    source_state = make_trainer(source_config).init(jax.random.key(3))
+    with Checkpointer(tmp_path / "source" / "checkpoints") as checkpointer:
+        checkpointer.save(0, source_state, source_config.to_dict(), {"iteration": 0})
+    # No time to play: the run saves its starting point, which must be the source's networks.
+    target = small_config(tmp_path, init_from=str(tmp_path / "source"), minutes=1e-9)
     result = train_robocup(target, env_factory=lambda i: SimEnv(1), print_fn=lambda _: None)
     assert result.iterations == 0
     _, expected = load_source_params(str(tmp_path / "source"))
-    _, started = load_source_params(str(tmp_path / "target"))
+    _, started = load_source_params(str(tmp_path / "run"))
     for a, b in zip(jax.tree.leaves(expected), jax.tree.leaves(started), strict=True):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     with pytest.raises(FileNotFoundError, match="nothing-here does not exist"):
-        load_source_params(str(tmp_path / "target" / "nothing-here"))
+        load_source_params(str(tmp_path / "run" / "nothing-here"))
+    # Resumed without --init-from (this command has no network flags): the checkpoint's
+    # networks carry on, instead of a refusal over network.features.
+    resumed = train_robocup(
+        small_config(tmp_path, minutes=1e-9), resume=True, env_factory=lambda i: SimEnv(1),
+        print_fn=lambda _: None,
+    )
+    assert resumed.iterations == 0 and not resumed.interrupted
+    saved = json.loads((tmp_path / "run" / "config.json").read_text())
+    assert saved["network"]["features"] == 16 and saved["network"]["lstm_features"] == 8
 
 
 @needs_rcssserver

@@ -347,6 +347,16 @@ def load_source_params(path: str) -> tuple[TrainConfig, Any]:
     return config, state.params
 
 
+def _with_saved_network(checkpointer: Any, train_config: TrainConfig) -> TrainConfig:
+    """``train_config`` with the network config of the latest checkpoint (unchanged when that
+    config cannot be read; ``check_resumable`` then says why)."""
+    try:
+        saved = TrainConfig.from_dict(checkpointer.read_config(), fill_missing=True)
+    except (TypeError, ValueError):
+        return train_config
+    return dataclasses.replace(train_config, network=saved.network).validate()
+
+
 def train_robocup(
     config: RoboCupTrainConfig,
     *,
@@ -383,6 +393,10 @@ def train_robocup(
                 f"{latest}); pass --resume to continue that run, or choose another --run-dir"
             )
         if latest is not None:
+            if config.init_from is None:
+                # This command has no network flags: a resumed run keeps the networks it was
+                # saved with (a run started with --init-from took its source's).
+                train_config = _with_saved_network(checkpointer, train_config)
             # The networks, PPO and game sizes must be the checkpoint's (a list of differences,
             # not a shape error from the restore).
             check_resumable(checkpointer, train_config)

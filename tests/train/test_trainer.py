@@ -129,6 +129,31 @@ def test_update_chunk_runs_compiles_once_and_is_deterministic() -> None:
     assert other.update_chunk is trainer.update_chunk
 
 
+def test_configs_with_the_same_networks_share_their_initialisation() -> None:
+    config = tiny_config()
+    trainer = make_trainer(config)
+    other = make_trainer(tiny_config(**{"ppo.learning_rate": 1e-3, "opponent.kind": "self"}))
+    assert other is not trainer
+    state, other_state = trainer.init(jax.random.key(4)), other.init(jax.random.key(4))
+    assert leaves_equal(state.params, other_state.params)
+    assert leaves_equal(state.opponent.polyak.params, state.params.policy)
+    # The shared initialiser feeds zeros for the inputs; the parameters are those of an init on
+    # a real game's observation and global state (they depend on the shapes only).
+    env, params = trainer.env, trainer.env_params
+    game, obs = env.reset(jax.random.key(0), params)
+    policy_key, critic_key, _ = jax.random.split(jax.random.key(4), 3)
+    n = env.players_per_team
+    on_a_game = jax.jit(
+        lambda: (
+            trainer.policy.init(
+                policy_key, trainer.policy.initial_carry((n,)), obs.team(0), jnp.zeros((n,), bool)
+            ),
+            trainer.critic.init(critic_key, env.global_state(game, params)),
+        )
+    )()
+    assert leaves_equal(on_a_game, (state.params.policy, state.params.critic))
+
+
 def test_compacted_update_equals_the_dense_update(monkeypatch: pytest.MonkeyPatch) -> None:
     # 4 v 4 is the smallest team that compacts. () is the dense trainer; (1.0,) always takes
     # the compacted branch; (0.05,) never fits and falls back to the dense branch.

@@ -56,6 +56,14 @@ def _timed(run: Callable[[], Any], repeats: int) -> tuple[float, list[float]]:
     return compile_s, times
 
 
+def reset_games(env: Soccer, params: EnvParams, key: jax.Array, games: int) -> State:
+    """``games`` fresh games (leading axis), reset in one compiled call: run eagerly, the
+    reset compiles each of its hundreds of small ops on its own."""
+    keys = jax.random.split(key, games)
+    states, _ = jax.jit(jax.vmap(env.reset, in_axes=(0, None)))(keys, params)
+    return states
+
+
 def make_scan_runner(
     env: Soccer, params: EnvParams, batch: int, steps: int
 ) -> Callable[[State, jax.Array], tuple[State, jax.Array]]:
@@ -96,9 +104,7 @@ def bench_scan(
     devices = len(available) if devices is None else devices
     if batch % devices:
         devices = 1
-    reset_keys = jax.random.split(jax.random.key(0), batch)
-    # Jitted: run eagerly, the reset compiles each of its hundreds of small ops on its own.
-    states, _ = jax.jit(jax.vmap(env.reset, in_axes=(0, None)))(reset_keys, params)
+    states = reset_games(env, params, jax.random.key(0), batch)
     if devices > 1:
         mesh = jax.sharding.Mesh(np.array(available[:devices]), ("games",))
         sharding = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("games"))

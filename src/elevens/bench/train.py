@@ -36,7 +36,7 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
-from elevens.bench.env import make_scan_runner
+from elevens.bench.env import make_scan_runner, reset_games
 from elevens.train.config import make_config
 
 
@@ -177,9 +177,7 @@ def bench_train(
 
     env, params = trainer.env, trainer.env_params
     runner = make_scan_runner(env, params, games, episode_length)
-    states, _ = jax.jit(jax.vmap(env.reset, in_axes=(0, None)))(
-        jax.random.split(jax.random.key(2), games), params
-    )
+    states = reset_games(env, params, jax.random.key(2), games)
     _, env_s = _median_time(lambda: runner(states, jax.random.key(3)), repeats)
     reference = host_reference()
 

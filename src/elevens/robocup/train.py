@@ -370,9 +370,9 @@ def train_robocup(
     from elevens.train.checkpoint import Checkpointer
     from elevens.train.logging import RunLogger
     from elevens.train.trainer import (
-        RunRefusedError,
         TrainState,
         check_resumable,
+        latest_resumable_step,
         make_trainer,
     )
 
@@ -386,12 +386,7 @@ def train_robocup(
     run_dir = Path(config.run_dir)
     checkpointer = Checkpointer(run_dir / "checkpoints", max_to_keep=3)
     try:
-        latest = checkpointer.latest_step()
-        if latest is not None and not resume:
-            raise RunRefusedError(
-                f"{checkpointer.directory} already holds checkpoints (latest: iteration "
-                f"{latest}); pass --resume to continue that run, or choose another --run-dir"
-            )
+        latest = latest_resumable_step(checkpointer, resume, "--resume", "--run-dir")
         if latest is not None:
             if config.init_from is None:
                 # This command has no network flags: a resumed run keeps the networks it was

@@ -724,14 +724,10 @@ def train(
     shaping_off_at: int | None = None
     try:
         # Refuse a mismatched resume (or an overwrite) before anything compiles.
-        latest = checkpointer.latest_step()
-        if latest is not None and not resume:
-            raise RunRefusedError(
-                f"{checkpointer.directory} already holds checkpoints (latest: iteration "
-                f"{latest}); pass resume=True (--resume) to continue that run, or choose another "
-                "run.run_dir"
-            )
-        resuming = resume and latest is not None
+        latest = latest_resumable_step(
+            checkpointer, resume, "resume=True (--resume)", "run.run_dir"
+        )
+        resuming = latest is not None
         if resuming:
             check_resumable(checkpointer, config)
         trainer = make_trainer(config)
@@ -886,6 +882,21 @@ def _title(config: TrainConfig) -> str:
         f"{config.env.scenario} ({config.preset} preset), opponent: {config.opponent.kind}, "
         f"seed {config.run.seed}"
     )
+
+
+def latest_resumable_step(
+    checkpointer: Any, resume: bool, resume_flag: str, run_dir_flag: str
+) -> int | None:
+    """The latest checkpoint's step, or None for an empty directory. Without ``resume`` a
+    directory that holds checkpoints is a ``RunRefusedError`` (a new run must not overwrite
+    another's); the message names the command's own flags."""
+    latest = checkpointer.latest_step()
+    if latest is not None and not resume:
+        raise RunRefusedError(
+            f"{checkpointer.directory} already holds checkpoints (latest: iteration {latest}); "
+            f"pass {resume_flag} to continue that run, or choose another {run_dir_flag}"
+        )
+    return latest
 
 
 def check_resumable(checkpointer: Any, config: TrainConfig) -> None:

@@ -292,7 +292,7 @@ def test_server_naive_plays_random() -> None:
 def test_init_from_a_checkpoint_starts_from_its_networks_and_resumes_with_them(
     tmp_path: Path,
 ) -> None:
-    from elevens.robocup.train import load_source_params
+    from elevens.train.trainer import load_learner_params
 
     # A source with a non-default network, written by hand (an init, no training).
     source_config = make_config(
@@ -307,12 +307,12 @@ def test_init_from_a_checkpoint_starts_from_its_networks_and_resumes_with_them(
     target = small_config(tmp_path, init_from=str(tmp_path / "source"), minutes=1e-9)
     result = train_robocup(target, env_factory=lambda i: SimEnv(1), print_fn=lambda _: None)
     assert result.iterations == 0
-    _, expected = load_source_params(str(tmp_path / "source"))
-    _, started = load_source_params(str(tmp_path / "run"))
+    _, expected = load_learner_params(str(tmp_path / "source"))
+    _, started = load_learner_params(str(tmp_path / "run"))
     for a, b in zip(jax.tree.leaves(expected), jax.tree.leaves(started), strict=True):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     with pytest.raises(FileNotFoundError, match="nothing-here does not exist"):
-        load_source_params(str(tmp_path / "run" / "nothing-here"))
+        load_learner_params(str(tmp_path / "run" / "nothing-here"))
     # Resumed without --init-from (this command has no network flags): the checkpoint's
     # networks carry on, instead of a refusal over network.features.
     resumed = train_robocup(

@@ -13,6 +13,7 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 import numpy as np
+import optax
 import pytest
 
 from elevens.train import trainer as trainer_module
@@ -417,6 +418,48 @@ def test_time_budget_ends_the_run_like_a_finished_one_and_resume_extends_it(
     more = dataclasses.replace(config, run=dataclasses.replace(config.run, max_minutes=600.0))
     finished = train(more, resume=True, progress=False)
     assert finished.iteration == 6 and not finished.out_of_time
+
+
+def test_a_run_starts_from_another_team_sizes_networks(tmp_path: Path) -> None:
+    # A 2 v 2 source with this file's networks, written by hand (an init and a save).
+    source_config = tiny_config(
+        **{"env.scenario": "2v2", "ppo.batch_size": 128, "ppo.minibatch_size": 32}
+    )
+    source_state = make_trainer(source_config).init(jax.random.key(7))
+    source = source_state.params
+    with Checkpointer(tmp_path / "source" / CHECKPOINT_DIR) as checkpointer:
+        checkpointer.save(0, source_state, source_config.to_dict(), {"iteration": 0})
+    # The 1 v 1 run starts from them: its Polyak opponent too, and its Adam state is fresh.
+    config = tiny_config(tmp_path / "run", **{
+        "run.init_from": str(tmp_path / "source"), "run.iterations": 2, "run.eval_every": 0,
+    })
+    fresh = make_trainer(config).init(jax.random.key(0))
+    assert not leaves_equal(fresh.params, source)  # the seeds differ: a real test
+    started = make_trainer(config).init(jax.random.key(0), trainer_module.load_start_params(
+        config.run.init_from, config)[1])
+    assert leaves_equal(started.params, source)
+    assert leaves_equal(started.opponent.polyak.params, source.policy)
+    assert leaves_equal(started.opt_state, fresh.opt_state)
+    # Two iterations of training at this learning rate stay near the source, far from a
+    # random init.
+    result = train(config, progress=False)
+    assert result.iteration == 2
+    trained = trainer_module.load_learner_params(str(tmp_path / "run"))[1]
+
+    def distance(a: Any, b: Any) -> float:
+        return float(optax.tree.norm(jax.tree.map(jnp.subtract, a, b)))
+
+    assert distance(trained, source) < 0.25 * distance(fresh.params, source)
+    # Other networks are refused before anything is written, naming the flag to pass.
+    wider = tiny_config(tmp_path / "wider", **{
+        "run.init_from": str(tmp_path / "source"), "network.features": 32,
+        "network.num_heads": 4,
+    })
+    with pytest.raises(RunRefusedError, match="--network.features 16 .this run: 32."):
+        train(wider, progress=False)
+    assert not (tmp_path / "wider").exists()
+    with pytest.raises(RunRefusedError, match="'naive' is a handcrafted team"):
+        train(tiny_config(tmp_path / "naive", **{"run.init_from": "naive"}), progress=False)
 
 
 def test_train_writes_logs_plot_gif_and_checkpoint(tmp_path: Path) -> None:

@@ -335,18 +335,6 @@ def play_iteration(
     return rollout, logs
 
 
-def load_source_params(path: str) -> tuple[TrainConfig, Any]:
-    """(config, LearnerParams) of a simulator (or server) training checkpoint: a run,
-    checkpoints or step directory, optionally ``PATH@ITERATION``."""
-    from elevens.eval.teams import load_train_state, parse_team_spec
-
-    spec = parse_team_spec(path)
-    if spec.path is None:
-        raise ValueError(f"init_from={path!r} is not a checkpoint path")
-    config, state = load_train_state(spec.path, spec.iteration)
-    return config, state.params
-
-
 def _with_saved_network(checkpointer: Any, train_config: TrainConfig) -> TrainConfig:
     """``train_config`` with the network config of the latest checkpoint (unchanged when that
     config cannot be read; ``check_resumable`` then says why)."""
@@ -373,6 +361,7 @@ def train_robocup(
         TrainState,
         check_resumable,
         latest_resumable_step,
+        load_learner_params,
         make_trainer,
     )
 
@@ -381,7 +370,7 @@ def train_robocup(
     source_params = None
     if config.init_from is not None:
         # The source's networks (their sizes and switches) carry over; PPO and the rest are ours.
-        source, source_params = load_source_params(config.init_from)
+        source, source_params = load_learner_params(config.init_from)
         train_config = dataclasses.replace(train_config, network=source.network).validate()
     run_dir = Path(config.run_dir)
     checkpointer = Checkpointer(run_dir / "checkpoints", max_to_keep=3)
@@ -396,22 +385,14 @@ def train_robocup(
             # not a shape error from the restore).
             check_resumable(checkpointer, train_config)
         trainer = make_trainer(train_config)
-        state: TrainState = trainer.init(jax.random.key(config.seed))
+        start = source_params if latest is None else None
+        state: TrainState = trainer.init(jax.random.key(config.seed), start)
         if latest is not None:
             state, _, _ = checkpointer.restore(state)
     except BaseException:
         # Closed here, as train() does, not left to the garbage collector.
         checkpointer.close()
         raise
-    if latest is None and source_params is not None:
-        polyak = state.opponent.polyak
-        assert polyak is not None
-        state = state.replace(
-            params=source_params,
-            opponent=state.opponent.replace(
-                polyak=polyak.replace(params=source_params.policy)
-            ),
-        )
     run_dir.mkdir(parents=True, exist_ok=True)
     (run_dir / "config.json").write_text(train_config.to_json(), encoding="utf-8")
     (run_dir / "robocup_config.json").write_text(

@@ -209,6 +209,11 @@ class RunConfig:
     """Newest checkpoints kept on disk; older ones are deleted after a successful save."""
     seed: int = 0
     """Seed of the run: initial params, every game, every minibatch shuffle."""
+    init_from: str = ""
+    """Start from another run's networks instead of random ones: a run, checkpoints or step
+    directory (``PATH@ITERATION`` picks a checkpoint), trained at any team size; its network
+    fields must be this run's. Adam starts afresh and the opponent starts as the loaded policy.
+    A resume ignores it (the checkpoint holds the networks). "": random networks."""
     run_dir: str = "runs/2v2"
     """Where logs, checkpoints, the learning curve and the GIF go."""
     write_plot: bool = True
@@ -664,6 +669,10 @@ def _validate_run(run: RunConfig) -> None:
     _int_at_least("run.checkpoint_every", run.checkpoint_every, 0)
     _int_at_least("run.keep_checkpoints", run.keep_checkpoints, 1)
     _require(_is_int(run.seed), f"run.seed={run.seed!r} is invalid: it must be an integer")
+    _require(
+        isinstance(run.init_from, str),
+        f"run.init_from={run.init_from!r} is invalid: it must be a checkpoint path or ''",
+    )
     unknown = [team for team in run.eval_teams if team not in EVAL_TEAMS]
     _require(
         isinstance(run.eval_teams, tuple) and not unknown,
@@ -738,6 +747,7 @@ RESUMABLE_FIELDS: tuple[str, ...] = (
     "preset",
     "run.iterations",
     "run.max_minutes",
+    "run.init_from",
     "run.iterations_per_chunk",
     "run.eval_every",
     "run.eval_games",

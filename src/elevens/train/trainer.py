@@ -156,7 +156,9 @@ class Trainer:
     policy: AttentionPolicy
     critic: AttentionCritic
     optimizer: optax.GradientTransformation
-    init: Callable[[jax.Array], TrainState]
+    init: Callable[..., TrainState]
+    """``init(key, start=None)``: a fresh TrainState; ``start`` (LearnerParams of the same
+    networks) replaces the random networks, and the opponent starts as its policy."""
     update_chunk: Callable[[TrainState], tuple[TrainState, Metrics]]
     iteration: Callable[[TrainState], tuple[TrainState, Metrics]]
     """One iteration, not jitted (the body of the chunk scan)."""
@@ -281,10 +283,15 @@ def _build_trainer(config: TrainConfig) -> Trainer:
 
     initialize_networks = _network_initializer(policy, critic, n)
 
-    def init(key: jax.Array) -> TrainState:
+    def init(key: jax.Array, start: LearnerParams | None = None) -> TrainState:
         policy_key, critic_key, run_key = jax.random.split(key, 3)
-        policy_params, critic_params = initialize_networks(policy_key, critic_key)
-        params = LearnerParams(policy=policy_params, critic=critic_params)
+        if start is None:
+            policy_params, critic_params = initialize_networks(policy_key, critic_key)
+            params = LearnerParams(policy=policy_params, critic=critic_params)
+        else:
+            # Another run's networks (--run.init-from); the opponent starts as their policy.
+            params = start
+            policy_params = start.policy
         if kind == "league":
             opponent = OpponentState(
                 polyak=None,
@@ -730,8 +737,11 @@ def train(
         resuming = latest is not None
         if resuming:
             check_resumable(checkpointer, config)
+        start = None
+        if run.init_from and not resuming:
+            _, start = load_start_params(run.init_from, config)
         trainer = make_trainer(config)
-        state = trainer.init(jax.random.key(run.seed))
+        state = trainer.init(jax.random.key(run.seed), start)
         if resuming:
             state, _, meta = checkpointer.restore(state)
             train_seconds = float(meta.get("train_seconds", 0.0))
@@ -897,6 +907,40 @@ def latest_resumable_step(
             f"pass {resume_flag} to continue that run, or choose another {run_dir_flag}"
         )
     return latest
+
+
+def load_learner_params(text: str) -> tuple[TrainConfig, LearnerParams]:
+    """(config, LearnerParams) of a training checkpoint or a shipped team that holds a critic:
+    a run, checkpoints or step directory, optionally ``PATH@ITERATION``."""
+    from elevens.eval.teams import load_train_state, parse_team_spec
+
+    spec = parse_team_spec(text)
+    if spec.path is None:
+        raise RunRefusedError(
+            f"{text!r} is a handcrafted team, not a checkpoint: a run starts only from a "
+            "training checkpoint (a run, checkpoints or step directory, or PATH@ITERATION)"
+        )
+    config, state = load_train_state(spec.path, spec.iteration)
+    return config, state.params
+
+
+def load_start_params(text: str, config: TrainConfig) -> tuple[TrainConfig, LearnerParams]:
+    """``load_learner_params(text)``, refused (``RunRefusedError``, listing the fields) unless
+    its networks are ``config``'s. The team size may differ: the networks read entity slots,
+    so a 2 v 2 team starts an 11 v 11 run (and the other way round)."""
+    source, params = load_learner_params(text)
+    if source.network != config.network:
+        differences = [
+            f"--network.{name.replace('_', '-')} {getattr(source.network, name)!r} "
+            f"(this run: {getattr(config.network, name)!r})"
+            for name in (field.name for field in dataclasses.fields(source.network))
+            if getattr(source.network, name) != getattr(config.network, name)
+        ]
+        raise RunRefusedError(
+            f"run.init_from={text!r} has other networks than this run; pass "
+            + ", ".join(differences)
+        )
+    return source, params
 
 
 def check_resumable(checkpointer: Any, config: TrainConfig) -> None:

@@ -34,17 +34,16 @@ from elevens.train.cli_train import (
     train_command,
 )
 
-TEAM_NAMES = ("random", "naive", "teamwork")
-
 
 @dataclass(frozen=True)
 class PlayArgs:
     """Play one game between two teams and write it as a GIF or MP4."""
 
     home: str = "naive"
-    """Team on side 0 (attacks +x): random, naive or teamwork."""
+    """Team on side 0 (attacks +x): random, naive, teamwork, a shipped trained team
+    (elevens-11v11, elevens-2v2) or a checkpoint PATH[@ITERATION]."""
     away: str = "teamwork"
-    """Team on side 1: random, naive or teamwork."""
+    """Team on side 1, as --home."""
     players: int = 11
     """Players per team, 1..11."""
     out: Path = Path("game.gif")
@@ -59,6 +58,23 @@ class PlayArgs:
     """Pixels per metre."""
     view: int | None = None
     """Draw this player's field of view (world row: team 0 is 0..n-1, team 1 is n..2n-1)."""
+    replay: Path | None = None
+    """Also save the game as a replay (.npz) that `elevens view` and `elevens render` open."""
+    deterministic: bool | None = None
+    """Trained teams play tanh(mean) (True) or sample (False); default: each team's setting."""
+
+
+@dataclass(frozen=True)
+class ExportTeamArgs:
+    """Write a trained team as a compact folder (networks.npz, config.json, MODEL_CARD.md):
+    the format of the shipped teams, usable wherever a team or --run.init-from is."""
+
+    team: tyro.conf.Positional[Annotated[str, tyro.conf.arg(metavar="TEAM")]]
+    """A checkpoint PATH[@ITERATION] (run, checkpoints or step directory) or a shipped team."""
+    out: Path
+    """The folder to write (created; files in it are replaced atomically)."""
+    card: Path | None = None
+    """A Markdown model card to copy in as MODEL_CARD.md."""
 
 
 @dataclass(frozen=True)
@@ -88,14 +104,40 @@ def _set_host_devices(count: int) -> None:
         os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " " + flag).strip()
 
 
-def play(args: PlayArgs) -> Path:
-    """Play a game and write it to ``args.out``."""
+def play(args: PlayArgs) -> Path | None:
+    """Play a game and write it to ``args.out`` (and ``args.replay``). Bad teams, sizes and
+    paths are one line on stderr and exit 2."""
     from elevens.eval.play import play_and_render
+    from elevens.train.checkpoint import CheckpointError
+    from elevens.train.cli_train import exit_with_error
 
-    return play_and_render(
-        home=args.home, away=args.away, players=args.players, out=args.out, seed=args.seed,
-        steps=args.steps, fps=args.fps, scale=args.scale, view=args.view,
-    )
+    try:
+        return play_and_render(
+            home=args.home, away=args.away, players=args.players, out=args.out,
+            seed=args.seed, steps=args.steps, fps=args.fps, scale=args.scale, view=args.view,
+            replay=args.replay, deterministic=args.deterministic,
+        )
+    except (ValueError, FileNotFoundError) as error:
+        exit_with_error("elevens play: error", error, 2)
+    except CheckpointError as error:
+        exit_with_error("elevens play: error", error, 1)
+
+
+def export_team(args: ExportTeamArgs) -> Path:
+    """Export ``args.team`` to ``args.out``; bad specs and damaged files exit 2."""
+    from elevens.eval.teams import export_team as export
+    from elevens.train.checkpoint import CheckpointError
+    from elevens.train.cli_train import exit_with_error
+
+    try:
+        card = None if args.card is None else args.card.read_text(encoding="utf-8")
+        folder, config = export(args.team, args.out, card)
+    except (ValueError, OSError) as error:
+        exit_with_error("elevens export-team: error", error, 2)
+    except CheckpointError as error:  # as elevens train: a damaged checkpoint is exit 1
+        exit_with_error("elevens export-team: error", error, 1)
+    print(f"wrote {folder} ({config.env.scenario}, {config.preset} preset)")
+    return folder
 
 
 def bench_env(args: EnvBenchArgs) -> None:
@@ -111,6 +153,7 @@ def bench_env(args: EnvBenchArgs) -> None:
 
 Command = (
     Annotated[PlayArgs, tyro.conf.subcommand("play")]
+    | Annotated[ExportTeamArgs, tyro.conf.subcommand("export-team")]
     | Annotated[EnvBenchArgs, tyro.conf.subcommand("bench-env")]
     | Annotated[TrainArgs, tyro.conf.subcommand("train")]
     | Annotated[TrainBenchArgs, tyro.conf.subcommand("bench-train")]
@@ -152,6 +195,8 @@ def _interrupt(signum: int, frame: object) -> None:
 def _run(args: object) -> None:
     if isinstance(args, PlayArgs):
         play(args)
+    elif isinstance(args, ExportTeamArgs):
+        export_team(args)
     elif isinstance(args, EnvBenchArgs):
         bench_env(args)
     elif isinstance(args, TrainArgs):

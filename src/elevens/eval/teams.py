@@ -6,7 +6,9 @@ A spec is one command-line word:
 * ``PATH`` or ``PATH@ITERATION``: a checkpoint of a training run. ``PATH`` is a run directory
   (holding ``checkpoints/``), a checkpoint directory (holding the step directories) or one step
   directory (``runs/a/checkpoints/500``). Without ``@ITERATION`` the latest checkpoint is used.
-* ``LABEL=SPEC``: either of the above, shown as ``LABEL`` in tables and plots
+* ``elevens-11v11``, ``elevens-2v2``: the trained teams shipped with the package
+  (``elevens.teams.trained``; ``shipped_team_names()`` lists them);
+* ``LABEL=SPEC``: any of the above, shown as ``LABEL`` in tables and plots
   (``22p=runs/11v11@5000``). LABEL may not contain ``/``, ``=`` or ``@``.
 
 A trained policy's parameters do not depend on the team size (attention over a variable number of
@@ -28,6 +30,7 @@ import jax.numpy as jnp
 
 from elevens.eval.play import HANDCRAFTED
 from elevens.teams.base import TeamPolicy
+from elevens.teams.trained import shipped_team_names
 
 HANDCRAFTED_NAMES: tuple[str, ...] = tuple(HANDCRAFTED)  # one list of names: eval.play's
 CHECKPOINTS_SUBDIR = "checkpoints"
@@ -50,6 +53,8 @@ class TeamSpec:
     """The label for tables and plots."""
     handcrafted: str | None = None
     """The handcrafted team's name, or None for a checkpoint."""
+    shipped: str | None = None
+    """The shipped trained team's name, or None."""
     path: Path | None = None
     """The checkpoint path as given (run, checkpoint or step directory), or None."""
     iteration: int | None = None
@@ -77,13 +82,17 @@ class Team:
     handcrafted teams, which play on any field they are told."""
 
 
+def _allowed_names() -> str:
+    return ", ".join((*HANDCRAFTED_NAMES, *shipped_team_names()))
+
+
 def parse_team_spec(text: str) -> TeamSpec:
     """Parse one spec word. Raises ``ValueError`` for an empty word, a bad label or iteration;
     the path is not checked here (``load_team`` does that)."""
     original = text
     text = text.strip()
     if not text:
-        raise ValueError("team spec is empty: use random, naive, teamwork or a checkpoint path")
+        raise ValueError(f"team spec is empty: use {_allowed_names()} or a checkpoint path")
     label: str | None = None
     head, sep, tail = text.partition("=")
     if sep and "/" not in head and os.sep not in head:
@@ -96,6 +105,8 @@ def parse_team_spec(text: str) -> TeamSpec:
             raise ValueError(f"team spec {original!r}: nothing after the label {label!r}")
     if text in HANDCRAFTED_NAMES:
         return TeamSpec(text=original, name=label or text, handcrafted=text)
+    if text in shipped_team_names():
+        return TeamSpec(text=original, name=label or text, shipped=text)
     path_text, iteration = text, None
     before, at, after = text.rpartition("@")
     if at:
@@ -121,7 +132,7 @@ def _checkpoint_directory(path: Path) -> tuple[Path, int | None]:
     if not path.exists():
         raise FileNotFoundError(
             f"team spec: {path} does not exist (expected a run directory, its checkpoints/ "
-            f"directory or a step directory; or one of {', '.join(HANDCRAFTED_NAMES)})"
+            f"directory or a step directory; or one of {_allowed_names()})"
         )
     if (path / CHECKPOINTS_SUBDIR).is_dir():
         return path / CHECKPOINTS_SUBDIR, None
@@ -270,12 +281,32 @@ def _load_checkpoint(
 def load_team(spec: str | TeamSpec, *, deterministic: bool | None = None) -> Team:
     """A ``Team`` from a spec word (or a parsed ``TeamSpec``); see the module docstring."""
     from elevens.eval.play import resolve_team
+    from elevens.nets.team import NetworkTeam
 
     parsed = parse_team_spec(spec) if isinstance(spec, str) else spec
     if parsed.handcrafted is not None:
         return Team(name=parsed.name, policy=resolve_team(parsed.handcrafted), spec=parsed.text)
-    assert parsed.path is not None
-    policy, params, config = _load_checkpoint(parsed.path, parsed.iteration, deterministic)
+    exported = parsed.path is not None and is_exported_team(parsed.path)
+    if parsed.shipped is not None or exported:
+        if parsed.shipped is not None:
+            config, networks = load_shipped_team(parsed.shipped)
+        else:
+            assert parsed.path is not None
+            if parsed.iteration is not None:
+                raise ValueError(
+                    f"team spec {parsed.text!r}: an exported team has one set of networks, "
+                    "drop the '@ITERATION'"
+                )
+            config, networks = load_exported_team(parsed.path)
+        if deterministic is None:
+            deterministic = bool(config.run.eval_deterministic)
+        policy: TeamPolicy = NetworkTeam(
+            policy=config.network.policy(), deterministic=deterministic, name=NETWORK_TEAM_NAME
+        )
+        params = networks.policy
+    else:
+        assert parsed.path is not None
+        policy, params, config = _load_checkpoint(parsed.path, parsed.iteration, deterministic)
     return Team(
         name=parsed.name,
         policy=policy,
@@ -285,6 +316,59 @@ def load_team(spec: str | TeamSpec, *, deterministic: bool | None = None) -> Tea
         spec=parsed.text,
         field=(config.env.field_length, config.env.field_width, config.env.goal_width),
     )
+
+
+def load_shipped_team(name: str) -> tuple[Any, Any]:
+    """(TrainConfig, LearnerParams) of shipped team ``name``. An unknown name is a
+    ``ValueError`` listing the shipped teams (see ``load_exported_team`` for the rest)."""
+    from elevens.teams.trained import shipped_team_directory
+
+    return load_exported_team(shipped_team_directory(name))
+
+
+def is_exported_team(path: Path) -> bool:
+    """True for a folder written by ``export_team`` (or a shipped team's)."""
+    from elevens.teams.trained import NETWORKS_FILE
+
+    return (path / NETWORKS_FILE).is_file()
+
+
+def load_exported_team(directory: Path) -> tuple[Any, Any]:
+    """(TrainConfig, LearnerParams) of a folder written by ``export_team``, checked against the
+    networks its config builds; damaged files are a ``ShippedTeamError`` naming the file."""
+    from elevens.teams.trained import CONFIG_FILE, ShippedTeamError, check_like, load_networks
+    from elevens.train.config import TrainConfig
+    from elevens.train.trainer import LearnerParams, make_trainer
+
+    raw_config, networks = load_networks(directory)
+    try:
+        config = TrainConfig.from_dict(raw_config, fill_missing=True).validate()
+    except (TypeError, ValueError) as error:
+        raise ShippedTeamError(
+            f"{directory / CONFIG_FILE} is not a TrainConfig of this version: {error}"
+        ) from None
+    target = jax.eval_shape(make_trainer(config).init, jax.random.key(0)).params
+    check_like(networks, {"policy": target.policy, "critic": target.critic}, str(directory))
+    return config, LearnerParams(
+        policy=jax.tree.map(jnp.asarray, networks["policy"]),
+        critic=jax.tree.map(jnp.asarray, networks["critic"]),
+    )
+
+
+def export_team(
+    spec: str, directory: str | Path, card: str | None = None
+) -> tuple[Path, Any]:
+    """Write the networks and config of ``spec`` (a checkpoint ``PATH[@ITERATION]``, an
+    exported folder or a shipped name) as a compact team folder (``networks.npz``,
+    ``config.json`` and, when given, ``MODEL_CARD.md``): what the package ships, and what
+    ``load_team`` and ``--run.init-from`` read. Returns (the folder, its TrainConfig)."""
+    from elevens.teams.trained import save_networks
+    from elevens.train.trainer import load_learner_params
+
+    config, params = load_learner_params(spec)
+    networks = {"policy": params.policy, "critic": params.critic}
+    folder = save_networks(directory, jax.device_get(networks), config.to_dict(), card)
+    return folder, config
 
 
 FIELD_NAMES = ("field_length", "field_width", "goal_width")

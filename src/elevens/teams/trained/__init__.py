@@ -1,0 +1,150 @@
+"""Trained teams shipped with the package, by name (``elevens-11v11``, ``elevens-2v2``).
+
+Each team is a folder beside this file: ``networks.npz`` (the policy's and the critic's
+parameters, flat arrays named by their path, read with ``allow_pickle=False``), ``config.json``
+(the ``TrainConfig`` of the run it came from, which builds the networks) and ``MODEL_CARD.md``
+(how it was trained and how it plays). ``elevens.eval.teams`` makes the names team specs, and
+``elevens.train.trainer.load_learner_params`` lets a run start from them (``--run.init-from``).
+
+This module only reads and writes the files (NumPy and JSON); building the networks is left to
+its callers.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import zipfile
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from flax import traverse_util
+
+NETWORKS_FILE = "networks.npz"
+CONFIG_FILE = "config.json"
+CARD_FILE = "MODEL_CARD.md"
+NETWORK_GROUPS = ("policy", "critic")
+_HERE = Path(__file__).resolve().parent
+
+
+class ShippedTeamError(ValueError):
+    """A shipped team's files are missing or damaged."""
+
+
+def shipped_team_names() -> tuple[str, ...]:
+    """The names of the teams shipped with this installation, sorted."""
+    return tuple(sorted(
+        entry.name for entry in _HERE.iterdir() if (entry / NETWORKS_FILE).is_file()
+    ))
+
+
+def shipped_team_directory(name: str) -> Path:
+    """The folder of shipped team ``name``; an unknown name is a ``ValueError`` listing the
+    shipped ones."""
+    names = shipped_team_names()
+    if name not in names:
+        raise ValueError(
+            f"team {name!r} is not a shipped team: shipped teams are "
+            f"{', '.join(names) or 'none in this installation'}"
+        )
+    return _HERE / name
+
+
+def save_networks(
+    directory: str | Path, networks: Mapping[str, Any], config: Mapping[str, Any],
+    card: str | None = None,
+) -> Path:
+    """Write ``networks`` ({"policy": variables, "critic": variables}, nested dicts of arrays)
+    and ``config`` (a ``TrainConfig.to_dict()``) into ``directory``, each file atomically (a
+    temporary file renamed into place). Returns the directory."""
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    missing = [group for group in NETWORK_GROUPS if group not in networks]
+    if missing:
+        raise ValueError(f"networks lack {', '.join(missing)}: give {', '.join(NETWORK_GROUPS)}")
+    flat = {
+        f"{group}/{path}": np.asarray(leaf)
+        for group in NETWORK_GROUPS
+        for path, leaf in traverse_util.flatten_dict(_plain(networks[group]), sep="/").items()
+    }
+    _write_atomically(
+        directory / NETWORKS_FILE,
+        lambda handle: np.savez(handle, **flat),  # type: ignore[arg-type]
+    )
+    text = json.dumps(dict(config), indent=2) + "\n"
+    _write_atomically(directory / CONFIG_FILE, lambda handle: handle.write(text.encode()))
+    if card is not None:
+        _write_atomically(directory / CARD_FILE, lambda handle: handle.write(card.encode()))
+    return directory
+
+
+def load_networks(directory: str | Path) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(config dict, {"policy": variables, "critic": variables}) of a folder written by
+    ``save_networks``; NumPy arrays in nested dicts. A missing or damaged file is a
+    ``ShippedTeamError`` that names it."""
+    directory = Path(directory)
+    config_path, networks_path = directory / CONFIG_FILE, directory / NETWORKS_FILE
+    try:
+        config = json.loads(config_path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as error:
+        raise ShippedTeamError(f"{config_path} cannot be read as JSON: {error}") from None
+    if not isinstance(config, dict):
+        raise ShippedTeamError(f"{config_path} holds no config object")
+    try:
+        with np.load(networks_path, allow_pickle=False) as archive:
+            flat = {name: np.asarray(archive[name]) for name in archive.files}
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as error:
+        raise ShippedTeamError(
+            f"{networks_path} cannot be read as a NumPy .npz archive: {error}"
+        ) from None
+    tree = traverse_util.unflatten_dict(flat, sep="/")
+    missing = [group for group in NETWORK_GROUPS if group not in tree]
+    if missing:
+        raise ShippedTeamError(f"{networks_path} has no {', '.join(missing)} arrays")
+    return config, {group: tree[group] for group in NETWORK_GROUPS}
+
+
+def check_like(loaded: Any, expected: Any, where: str) -> None:
+    """Raise ``ShippedTeamError`` unless ``loaded`` has ``expected``'s paths and shapes
+    (``expected``: arrays or ``jax.ShapeDtypeStruct`` in nested dicts)."""
+    have = traverse_util.flatten_dict(_plain(loaded), sep="/")
+    want = traverse_util.flatten_dict(_plain(expected), sep="/")
+    missing, extra = sorted(set(want) - set(have)), sorted(set(have) - set(want))
+    if missing or extra:
+        raise ShippedTeamError(
+            f"{where}: the arrays do not fit the networks of its config.json "
+            f"(missing: {', '.join(missing[:5]) or 'none'}; unexpected: "
+            f"{', '.join(extra[:5]) or 'none'})"
+        )
+    for path, leaf in want.items():
+        if tuple(have[path].shape) != tuple(leaf.shape):
+            raise ShippedTeamError(
+                f"{where}: {path} has shape {tuple(have[path].shape)}, its networks need "
+                f"{tuple(leaf.shape)}"
+            )
+
+
+def _plain(tree: Any) -> Any:
+    """Nested mappings (Flax FrozenDicts included) as plain dicts."""
+    if isinstance(tree, Mapping):
+        return {str(key): _plain(value) for key, value in tree.items()}
+    return tree
+
+
+def _write_atomically(path: Path, write: Any) -> None:
+    """``write(binary handle)`` into a temporary file beside ``path``, then rename it into
+    place: a reader never sees half a file."""
+    descriptor, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
+    try:
+        with os.fdopen(descriptor, "wb") as handle:
+            write(handle)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.chmod(temporary, 0o644)  # mkstemp's 0600 would hide package data from other users
+        os.replace(temporary, path)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise

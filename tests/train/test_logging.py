@@ -79,12 +79,16 @@ def test_resumed_run_appends_and_last_value_wins(tmp_path: Path) -> None:
     with RunLogger(tmp_path, use_tensorboard=False) as logger:
         for step in range(4):
             logger.log(step, {"train/score": step / 10})
-    # Resumed from a checkpoint at step 2: steps 2 and 3 are logged again with new values.
-    with RunLogger(tmp_path, use_tensorboard=False) as logger:
+    # Resumed from a checkpoint at step 1: steps 2 and 3 are logged again with new values,
+    # and the old rows of those steps are gone (one row per step and metric).
+    with RunLogger(tmp_path, use_tensorboard=False, resumed_at=1) as logger:
         for step in range(2, 6):
             logger.log(step, {"train/score": 1.0 + step})
     text = (tmp_path / METRICS_CSV).read_text()
     assert text.count("step,name,value") == 1
+    assert text.splitlines()[1:] == [f"{step},train/score,{value!r}" for step, value in
+                                     [(0, 0.0), (1, 0.1), (2, 3.0), (3, 4.0), (4, 5.0),
+                                      (5, 6.0)]]
     steps, values = read_metrics_csv(tmp_path)["train/score"]  # a run directory works too
     np.testing.assert_array_equal(steps, [0, 1, 2, 3, 4, 5])
     np.testing.assert_allclose(values, [0.0, 0.1, 3.0, 4.0, 5.0, 6.0])

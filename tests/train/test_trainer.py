@@ -303,6 +303,9 @@ def test_resume_is_bit_identical_to_an_uninterrupted_run(tmp_path: Path) -> None
     restored, _, meta = checkpointer.restore(first.state)
     assert leaves_equal(restored, first.state)  # the checkpoint holds the state bit for bit
     assert meta["env_steps"] == 2 * GAMES * STEPS
+    # As if the run had been killed after logging iteration 3, before its checkpoint.
+    with (tmp_path / "a" / "metrics.csv").open("a") as handle:
+        handle.write("3,train/mean_score,-1.0\n")
 
     resumed = train(
         tiny_config(tmp_path / "a", **common, **{"run.iterations": 4}), resume=True,
@@ -313,9 +316,13 @@ def test_resume_is_bit_identical_to_an_uninterrupted_run(tmp_path: Path) -> None
     assert resumed.iteration == straight.iteration == 4
     assert leaves_equal(resumed.state, straight.state)
 
-    # The metrics of the resumed run continue where the first part stopped.
+    # The metrics of the resumed run continue where the first part stopped, with one row per
+    # iteration: the killed run's row of iteration 3 is replaced.
     curves = read_metrics_csv(tmp_path / "a")
     np.testing.assert_array_equal(curves["train/mean_score"].steps, [1, 2, 3, 4])
+    rows = (tmp_path / "a" / "metrics.csv").read_text().splitlines()
+    assert sum(row.startswith("3,train/mean_score,") for row in rows) == 1
+    assert "3,train/mean_score,-1.0" not in rows
     assert "eval/random/outcome" in curves  # the final evaluation
 
 

@@ -401,7 +401,7 @@ def train_robocup(
     learn = jax.jit(trainer.learn)
     act = make_actor(trainer.policy)
     factory = env_factory or _default_env_factory(config)
-    logger = RunLogger(run_dir)
+    logger = RunLogger(run_dir, resumed_at=int(state.iteration) if latest is not None else None)
     episodes_path = run_dir / EPISODES_CSV
     new_file = not episodes_path.exists()
     episodes_file = episodes_path.open("a", newline="", encoding="utf-8")

@@ -73,10 +73,14 @@ class RunLogger:
         run_dir: the run's directory (created if missing).
         use_tensorboard: write TensorBoard event files.
         use_csv: write ``metrics.csv``.
+        resumed_at: a resumed run's checkpoint step: rows of ``metrics.csv`` after it were
+            logged by iterations that the resumed run plays again, so they are dropped first
+            (the file is rewritten atomically) and the CSV keeps one row per step and metric.
     """
 
     def __init__(
-        self, run_dir: str | os.PathLike[str], use_tensorboard: bool = True, use_csv: bool = True
+        self, run_dir: str | os.PathLike[str], use_tensorboard: bool = True, use_csv: bool = True,
+        resumed_at: int | None = None,
     ) -> None:
         self.run_dir = Path(run_dir)
         self.run_dir.mkdir(parents=True, exist_ok=True)
@@ -85,6 +89,8 @@ class RunLogger:
         self._csv_file: TextIO | None = None
         self._csv_writer: Any = None
         if use_csv:
+            if resumed_at is not None:
+                _drop_rows_after(self.csv_path, resumed_at)
             self._csv_file = self._open_csv(self.csv_path)
             self._csv_writer = csv.writer(self._csv_file, lineterminator="\n")
         self._writer: Any = None
@@ -170,6 +176,28 @@ class Curve(NamedTuple):
 
     steps: np.ndarray  # i64[T]
     values: np.ndarray  # f64[T]
+
+
+def _drop_rows_after(path: Path, step: int) -> None:
+    """Rewrite ``path`` (a metrics CSV) without the rows of steps after ``step``, atomically;
+    a missing, empty or foreign file is left to ``_open_csv``."""
+    if not path.is_file() or path.stat().st_size == 0:
+        return
+    with path.open(newline="", encoding="utf-8") as handle:
+        rows = list(csv.reader(handle))
+    if not rows or tuple(rows[0]) != CSV_HEADER:
+        return
+    kept = [row for row in rows[1:] if not (row and row[0].isdigit() and int(row[0]) > step)]
+    if len(kept) == len(rows) - 1:
+        return
+    temporary = path.with_name(f".{path.name}.tmp")
+    with temporary.open("w", newline="", encoding="utf-8") as handle:
+        writer = csv.writer(handle, lineterminator="\n")
+        writer.writerow(CSV_HEADER)
+        writer.writerows(kept)
+        handle.flush()
+        os.fsync(handle.fileno())
+    os.replace(temporary, path)
 
 
 def read_metrics_csv(path: str | os.PathLike[str]) -> dict[str, Curve]:

@@ -791,7 +791,7 @@ def train(
         logger.log(it, {**results, **_time_metrics(it, steps_per_iteration, train_seconds)})
         return results
 
-    logger = RunLogger(run_dir)
+    logger = RunLogger(run_dir, resumed_at=iteration if resuming else None)
     bar = TrainProgress(
         run.iterations,
         metrics=PROGRESS_METRICS,

@@ -1,0 +1,40 @@
+#!/usr/bin/env bash
+# The recipe of the shipped teams (docs/results/table_6_3.md): one budget B for both teams.
+#   4-player team : the 2v2 preset for B minutes.
+#   22-player team: the same 2v2 run's checkpoint at S minutes, then 11 v 11 for B - S minutes
+#                   (--run.init-from; the 2v2 preset's PPO numbers, 16 games an iteration).
+# Each stage is its own run directory and resumes with --resume, so re-running this script after
+# an interruption continues where it stopped. Stages 2a and 2b run side by side, one core each.
+#
+# Usage: scripts/train_shipped_teams.sh RUNS_DIR [B_MINUTES] [S_MINUTES]
+set -euo pipefail
+runs=${1:?usage: scripts/train_shipped_teams.sh RUNS_DIR [B_MINUTES] [S_MINUTES]}
+budget=${2:-80}
+switch=${3:-30}
+elevens=${ELEVENS:-elevens}
+mkdir -p "$runs"
+
+resume_flag() { [ -d "$1/checkpoints" ] && echo --resume || true; }
+
+# Stage 1: 2 v 2 for S minutes (the shared start of both teams).
+nice -n 10 taskset -c 1 "$elevens" train 2v2 $(resume_flag "$runs/2v2_start") --no-progress \
+  --run.max-minutes "$switch" --run.run-dir "$runs/2v2_start"
+
+# Stage 2a: the 4-player team goes on in 2 v 2 to B minutes (a copy, so the start stays).
+if [ ! -d "$runs/4p" ]; then cp -r "$runs/2v2_start" "$runs/4p"; fi
+nice -n 10 taskset -c 1 "$elevens" train 2v2 --resume --no-progress \
+  --run.max-minutes "$budget" --run.run-dir "$runs/4p" &
+four=$!
+
+# Stage 2b: the 22-player team plays 11 v 11 for B - S minutes from the stage-1 networks.
+nice -n 10 taskset -c 0 "$elevens" train 11v11 $(resume_flag "$runs/22p") --no-progress \
+  --run.init-from "$runs/2v2_start" --run.max-minutes "$((budget - switch))" \
+  --run.run-dir "$runs/22p" --run.games-per-iteration 16 --ppo.batch-size 176 \
+  --ppo.minibatch-size 22 --ppo.learning-rate 5e-4 --ppo.gamma 0.99 \
+  --ppo.advantage-estimator gae --ppo.normalize-advantages --ppo.entropy-weight 1e-3 \
+  --opponent.polyak-tau 0.05 --env.no-shaping-schedule --run.eval-every 20 \
+  --run.eval-games 50 --run.eval-teams naive teamwork
+wait "$four"
+
+"$elevens" export-team "$runs/4p" --out "$runs/export/elevens-2v2"
+"$elevens" export-team "$runs/22p" --out "$runs/export/elevens-11v11"

@@ -29,16 +29,23 @@ def test_play_view_of_one_player_and_mp4(tmp_path):
 @pytest.mark.parametrize(
     "argv,message",
     [
-        (["play", "--home", "wizards", "--steps", "4"], "team 'wizards' is unknown"),
-        (["play", "--players", "12", "--steps", "4"], "players_per_team=12"),
+        (["play", "--home", "wizards", "--steps", "4"],
+         "wizards does not exist (expected a run directory"),
+        (["play", "--players", "12", "--steps", "4"], "players=12 is invalid"),
         (["play", "--players", "1", "--view", "5", "--steps", "4"], "view=5"),
         (["play", "--steps", "4", "--out", "game.avi"], ".gif or .mp4"),
+        (["play", "--steps", "4", "--replay", "game.json"], "the suffix must be .npz"),
     ],
 )
-def test_play_bad_input_is_a_clear_error(argv, message, tmp_path, monkeypatch):
+def test_play_bad_input_is_one_line_and_exit_2(argv, message, tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
-    with pytest.raises(ValueError, match=message):
+    with pytest.raises(SystemExit) as exit_info:
         main(argv)
+    assert exit_info.value.code == 2
+    error = capsys.readouterr().err.strip()
+    assert error.startswith("elevens play: error: ") and "\n" not in error
+    assert message in error
+    assert list(tmp_path.iterdir()) == []  # nothing written
 
 
 def test_bench_env_json_lines(capsys):

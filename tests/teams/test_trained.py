@@ -110,10 +110,10 @@ def test_play_takes_any_team_writes_a_replay_and_refuses_unknown_names(
     checkpoint: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     replay = tmp_path / "game.npz"
-    main(["play", "--home", str(checkpoint), "--away", "naive", "--players", "2",
+    main(["play", "--home", f"mine={checkpoint}", "--away", "naive", "--players", "2",
           "--steps", "12", "--out", str(tmp_path / "game.gif"), "--replay", str(replay)])
     loaded = load_replay(replay)
-    assert loaded.team_names == ("run0", "naive") and loaded.positions.shape[:2] == (12, 4)
+    assert loaded.team_names == ("mine", "naive") and loaded.positions.shape[:2] == (12, 4)
     assert (tmp_path / "game.gif").stat().st_size > 0
     capsys.readouterr()
     with pytest.raises(SystemExit) as exit_info:

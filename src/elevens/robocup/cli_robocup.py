@@ -31,9 +31,10 @@ class RoboCupPlayArgs:
     """Play a checkpoint or a handcrafted team against another in rcssserver."""
 
     team0: str = "naive"
-    """Left team: naive, random, or a checkpoint path (run, checkpoints or step directory)."""
+    """Left team: naive, random, a shipped trained team (elevens-11v11, elevens-2v2) or a
+    checkpoint path (run, checkpoints or step directory)."""
     team1: str = "random"
-    """Right team: naive, random, or a checkpoint path."""
+    """Right team, as --team0."""
     players: int = 11
     """Players per team, 1..11."""
     episodes: int = 1

@@ -1,8 +1,9 @@
 """Matches in rcssserver: a checkpoint or a handcrafted team against another.
 
 Team specs: ``naive`` (the RoboCup naive team of thesis section 6.7, :mod:`elevens.robocup.naive`),
-``random`` (uniform actions), or a checkpoint path as ``elevens tournament`` takes it (a run
-directory, its ``checkpoints`` directory or one step directory, optionally ``PATH@ITERATION``).
+``random`` (uniform actions), a shipped trained team (``elevens-11v11``, ``elevens-2v2``) or a
+checkpoint path as ``elevens tournament`` takes it (a run directory, its ``checkpoints``
+directory or one step directory, optionally ``PATH@ITERATION``).
 A checkpoint trained in the simulator plays unchanged: RoboCupEnv gives it the simulator's
 observation containers, and its 2-value (move, rot) actions go through the "sim" action mapping.
 """

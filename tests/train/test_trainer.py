@@ -404,6 +404,25 @@ def test_ctrl_c_writes_a_checkpoint_and_the_run_can_continue(tmp_path: Path) -> 
     assert finished.iteration == 6 and not finished.interrupted
 
 
+def test_an_interrupted_command_exits_130_with_its_checkpoint_written(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    real_train = trainer_module.train
+
+    def ctrl_c_after_the_first_chunk(config: TrainConfig, **kwargs: Any) -> Any:
+        def stop(state: TrainState, metrics: Mapping[str, float]) -> None:
+            raise KeyboardInterrupt
+
+        return real_train(config, on_chunk=stop, **kwargs)
+
+    monkeypatch.setattr(trainer_module, "train", ctrl_c_after_the_first_chunk)
+    config = tiny_config(tmp_path, **{"run.iterations": 4, "run.eval_every": 0})
+    with pytest.raises(SystemExit) as exit_info:
+        train_command(TrainArgs(config=config, progress=False))
+    assert exit_info.value.code == 130
+    assert Checkpointer(tmp_path / CHECKPOINT_DIR).all_steps() == [2]
+
+
 def test_time_budget_ends_the_run_like_a_finished_one_and_resume_extends_it(
     tmp_path: Path,
 ) -> None:

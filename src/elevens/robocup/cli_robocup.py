@@ -12,7 +12,7 @@ import time
 from dataclasses import asdict, dataclass
 
 from elevens.robocup.server import RcssserverNotFound, find_rcssserver
-from elevens.train.cli_train import exit_with_error
+from elevens.train.cli_train import EXIT_INTERRUPTED, exit_with_error
 
 
 @dataclass(frozen=True)
@@ -186,6 +186,8 @@ def train(args: RoboCupTrainArgs) -> None:
         f"{result.episodes} episodes, {result.restarts} server restarts in {result.wall_s:.0f} s; "
         f"checkpoint {result.checkpoint}"
     )
+    if result.interrupted:
+        raise SystemExit(EXIT_INTERRUPTED)
 
 
 def bench(args: RoboCupBenchArgs) -> None:

@@ -107,7 +107,15 @@ def train_command(args: TrainArgs) -> Any:
         print(f"  checkpoint: {result.checkpoint}")
     for name, path in result.files.items():
         print(f"  {name}: {path}")
+    if result.interrupted:
+        # 128 + SIGINT, as a shell reports it: a script or scheduler can tell a stopped run
+        # (its checkpoint written; --resume continues it) from a finished one.
+        raise SystemExit(EXIT_INTERRUPTED)
     return result
+
+
+EXIT_INTERRUPTED = 130
+"""Exit status of a training command stopped by Ctrl-C or SIGTERM (after its checkpoint)."""
 
 
 def exit_with_error(prefix: str, error: Exception, code: int) -> NoReturn:

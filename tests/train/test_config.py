@@ -16,6 +16,8 @@ from elevens.train.config import (
     config_differences,
     load_config,
     make_config,
+    mix_schedule,
+    scenario_config,
     validate,
 )
 from elevens.train.ppo import PPOHyperparams
@@ -122,6 +124,17 @@ def test_whole_group_override() -> None:
         ({"run.seed": 1.5}, ["run.seed"]),
         ({"run.max_minutes": -5.0}, ["run.max_minutes=-5.0", ">= 0"]),
         ({"run.max_minutes": float("inf")}, ["run.max_minutes=inf", "finite"]),
+        ({"run.init_from": 3}, ["run.init_from=3", "checkpoint path"]),
+        ({"env.mix": ("2v2",)}, ["env.mix_shares=()", "one share in (0, 1) per game"]),
+        ({"env.mix": ("2v2",), "env.mix_shares": (1.0,)}, ["env.mix_shares=(1.0,)"]),
+        ({"env.mix": ("1v1",), "env.mix_shares": (0.5,)}, ["env.mix=('1v1',)", "differ"]),
+        ({"env.mix": ("2v3",), "env.mix_shares": (0.5,)}, ["env.mix", "NvN"]),
+        ({"env.mix": ("3v3",), "env.mix_shares": (0.5,)},
+         ["ppo.batch_size=64", "multiples of 3"]),
+        ({"env.mix": ("2v2",), "env.mix_shares": (0.5,), "opponent.kind": "league"},
+         ["opponent.kind='league'", "'polyak' or 'self'"]),
+        ({"env.mix": ("2v2",), "env.mix_shares": (0.5,), "network.use_attention": False},
+         ["network.use_attention=False", "one team size"]),
     ],
 )
 def test_bad_values_name_the_field(overrides: dict, words: list[str]) -> None:
@@ -281,3 +294,19 @@ def test_cli_train_validates_before_compiling(capsys: pytest.CaptureFixture[str]
     assert exit_info.value.code == 2
     assert "elevens train: error: ppo.batch_size=660 is invalid" in capsys.readouterr().err
     assert time.perf_counter() - start < 0.5
+
+
+def test_a_mixed_run_shares_its_chunks_between_sizes_by_a_fixed_schedule() -> None:
+    config = make_config("11v11", **{
+        "env.mix": ("2v2", "5v5"), "env.mix_shares": (0.5, 0.25),
+        "run.games_per_iteration": 20, "ppo.batch_size": 220, "ppo.minibatch_size": 110,
+    })
+    schedule = mix_schedule(config, 400)
+    assert schedule[:8] == ["2v2", "11v11", "5v5", "2v2", "2v2", "11v11", "5v5", "2v2"]
+    assert [schedule.count(game) for game in ("2v2", "5v5", "11v11")] == [200, 100, 100]
+    assert mix_schedule(config, 7) == schedule[:7]  # a resumed run follows the same one
+    two = scenario_config(config, "2v2")
+    assert (two.env.scenario, two.run.games_per_iteration, two.env.mix) == ("2v2", 110, ())
+    assert two.ppo == config.ppo and two.validate() is two
+    # Without a mix, every chunk plays the scenario.
+    assert set(mix_schedule(make_config("2v2"), 5)) == {"2v2"}

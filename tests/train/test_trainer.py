@@ -488,6 +488,33 @@ def test_a_run_starts_from_another_team_sizes_networks(tmp_path: Path) -> None:
         train(tiny_config(tmp_path / "naive", **{"run.init_from": "naive"}), progress=False)
 
 
+def test_a_mixed_run_trains_one_state_at_two_sizes_and_resumes_bit_for_bit(
+    tmp_path: Path,
+) -> None:
+    # 1 v 1 (this file's computation, 64 games) and 2 v 2 (32 games: the same 64 sequences),
+    # every other chunk of K = 2.
+    mixed = {"env.mix": ("2v2",), "env.mix_shares": (0.5,), "run.eval_every": 0}
+    straight = train(tiny_config(tmp_path / "a", **mixed, **{"run.iterations": 6}),
+                     progress=False)
+    assert straight.iteration == 6
+    assert straight.env_steps == (2 * 64 + 2 * 32 + 2 * 64) * STEPS
+    curves = read_metrics_csv(tmp_path / "a")
+    np.testing.assert_array_equal(curves["env/players_per_team"].values, [1, 1, 2, 2, 1, 1])
+    np.testing.assert_array_equal(
+        np.diff(curves["time/env_steps"].values, prepend=0.0),
+        [64 * STEPS] * 2 + [32 * STEPS] * 2 + [64 * STEPS] * 2,
+    )
+    # Stopped after the first chunk and resumed: the same schedule, the same bits.
+    first = tiny_config(tmp_path / "b", **mixed, **{"run.iterations": 2})
+    train(first, progress=False)
+    resumed = train(
+        dataclasses.replace(first, run=dataclasses.replace(first.run, iterations=6)),
+        resume=True, progress=False,
+    )
+    assert resumed.env_steps == straight.env_steps
+    assert leaves_equal(resumed.state, straight.state)
+
+
 def test_train_writes_logs_plot_gif_and_checkpoint(tmp_path: Path) -> None:
     config = tiny_config(
         tmp_path,

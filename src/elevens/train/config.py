@@ -87,6 +87,18 @@ class EnvConfig:
     """Recent games the scoring rate is measured over (shaping.py: 100; the thesis names none)."""
     shaping_threshold: float = SHAPING_THRESHOLD
     """Shaping goes off when the scoring rate is above this (section 4.2: "more than 75%")."""
+    mix: tuple[str, ...] = ()
+    """Other games trained in the same run beside ``scenario`` (thesis 7.4.4), e.g. ('2v2',):
+    the small games teach the basic skills cheaply, the full one team play. Each chunk of
+    iterations plays one size, chosen so that each size gets its share (``mix_shares``). Every
+    size plays ``ppo.batch_size`` player sequences an iteration (batch_size / n games) in
+    minibatches of ``ppo.minibatch_size`` sequences, so both must be multiples of each size's n.
+    The networks attend over entity slots, so one set of weights plays every size with no
+    padding (a 2 v 2 game costs what a 2 v 2 game costs). Evaluation and the GIF use
+    ``scenario``. (): one size."""
+    mix_shares: tuple[float, ...] = ()
+    """The share of the iterations of each game of ``mix``, in its order; ``scenario`` has the
+    rest. E.g. ``mix=('2v2',), mix_shares=(0.5,)``: every other chunk is 2 v 2."""
 
     @property
     def players_per_team(self) -> int:
@@ -547,6 +559,7 @@ def validate(config: TrainConfig) -> None:
     _validate_ppo(config)
     _validate_opponent(config.opponent)
     _validate_run(config.run)
+    _validate_mix(config)
 
 
 def _validate_env(env: EnvConfig) -> None:
@@ -585,6 +598,87 @@ def _validate_env(env: EnvConfig) -> None:
     )
     _int_at_least("env.shaping_window", env.shaping_window, 1)
     _in_unit_interval("env.shaping_threshold", env.shaping_threshold)
+
+
+def _players_of(scenario: str) -> int:
+    match = _SCENARIO.match(scenario)
+    assert match is not None
+    return int(match.group(1))
+
+
+def _validate_mix(config: TrainConfig) -> None:
+    env, ppo = config.env, config.ppo
+    _require(
+        isinstance(env.mix, tuple) and isinstance(env.mix_shares, tuple),
+        "env.mix and env.mix_shares must be tuples",
+    )
+    for scenario in env.mix:
+        match = _SCENARIO.match(scenario) if isinstance(scenario, str) else None
+        _require(
+            match is not None
+            and match.group(1) == match.group(2)
+            and 1 <= int(match.group(1)) <= MAX_PLAYERS_PER_TEAM,
+            f"env.mix: {_scenario_error(scenario)}",
+        )
+    if not env.mix and not env.mix_shares:
+        return
+    _require(
+        env.scenario not in env.mix and len(set(env.mix)) == len(env.mix),
+        f"env.mix={env.mix!r} is invalid: its games must differ from each other and from "
+        f"env.scenario={env.scenario!r}",
+    )
+    _require(
+        len(env.mix_shares) == len(env.mix)
+        and all(_is_number(share) and 0 < share < 1 for share in env.mix_shares)
+        and sum(env.mix_shares) < 1,
+        f"env.mix_shares={env.mix_shares!r} is invalid: give one share in (0, 1) per game of "
+        f"env.mix={env.mix!r}, summing to less than 1 (env.scenario has the rest)",
+    )
+    for scenario in env.mix:
+        n = _players_of(scenario)
+        _require(
+            ppo.batch_size % n == 0 and ppo.minibatch_size % n == 0,
+            f"env.mix={env.mix!r} is invalid with ppo.batch_size={ppo.batch_size} and "
+            f"ppo.minibatch_size={ppo.minibatch_size}: both count player sequences, and a "
+            f"{scenario} iteration needs multiples of {n} (whole games)",
+        )
+    _require(
+        config.opponent.kind != "league",
+        "env.mix is invalid with opponent.kind='league': the league plays one snapshot per "
+        "game, and the sizes differ in games per iteration; use 'polyak' or 'self'",
+    )
+    _require(
+        config.network.use_attention,
+        "env.mix is invalid with network.use_attention=False: the feedforward network's first "
+        "layer fits one team size",
+    )
+
+
+def scenario_config(config: TrainConfig, scenario: str) -> TrainConfig:
+    """The one-size config that plays ``scenario``'s iterations of a mixed run: the same batch
+    and minibatch in player sequences, batch_size / n games, no mix."""
+    n = _players_of(scenario)
+    return dataclasses.replace(
+        config,
+        env=dataclasses.replace(config.env, scenario=scenario, mix=(), mix_shares=()),
+        run=dataclasses.replace(config.run, games_per_iteration=config.ppo.batch_size // n),
+    )
+
+
+def mix_schedule(config: TrainConfig, chunks: int) -> list[str]:
+    """The game each of the first ``chunks`` chunks of a run plays: at every chunk the game
+    furthest below its share (``env.scenario`` first on ties). Deterministic, so a resumed run
+    follows the same schedule."""
+    games = (config.env.scenario, *config.env.mix)
+    shares = (1.0 - sum(config.env.mix_shares), *config.env.mix_shares)
+    played = [0] * len(games)
+    schedule = []
+    for chunk in range(chunks):
+        deficits = [share * (chunk + 1) - done for share, done in zip(shares, played, strict=True)]
+        pick = max(range(len(games)), key=lambda index: (deficits[index], -index))
+        played[pick] += 1
+        schedule.append(games[pick])
+    return schedule
 
 
 def _validate_network(network: NetworkConfig, players_per_team: int) -> None:

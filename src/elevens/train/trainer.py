@@ -62,6 +62,8 @@ from elevens.train.config import (
     RunConfig,
     TrainConfig,
     config_differences,
+    mix_schedule,
+    scenario_config,
     validate,
 )
 from elevens.train.rollout import Rollout, rollout
@@ -726,7 +728,14 @@ def train(
     run = config.run
     run_dir = Path(run.run_dir)
     checkpointer = Checkpointer(run_dir / CHECKPOINT_DIR, max_to_keep=run.keep_checkpoints)
-    steps_per_iteration = config.env_steps_per_iteration
+    # A mixed run (env.mix) has one trainer per game size over the same TrainState; the
+    # main scenario's evaluates, draws and shapes what is saved.
+    games = (config.env.scenario, *config.env.mix)
+    game_configs = (
+        {game: scenario_config(config, game) for game in games} if config.env.mix
+        else {config.env.scenario: config}
+    )
+    schedule = mix_schedule(config, -(-run.iterations // run.iterations_per_chunk) + 1)
     train_seconds = 0.0  # wall time spent in chunks and evaluation, over all sessions of the run
     shaping_off_at: int | None = None
     try:
@@ -740,12 +749,17 @@ def train(
         start = None
         if run.init_from and not resuming:
             _, start = load_start_params(run.init_from, config)
-        trainer = make_trainer(config)
+        trainers = {game: make_trainer(game_config) for game, game_config in game_configs.items()}
+        trainer = trainers[config.env.scenario]
         state = trainer.init(jax.random.key(run.seed), start)
+        env_steps = 0  # game steps played, over all sessions of the run
         if resuming:
             state, _, meta = checkpointer.restore(state)
             train_seconds = float(meta.get("train_seconds", 0.0))
             shaping_off_at = meta.get("shaping_off_iteration")
+            env_steps = int(
+                meta.get("env_steps", int(state.iteration) * config.env_steps_per_iteration)
+            )
     except BaseException:
         # Closed here, not left to the garbage collector with Orbax's background thread.
         checkpointer.close()
@@ -774,7 +788,7 @@ def train(
             config.to_dict(),
             {
                 "iteration": it,
-                "env_steps": it * steps_per_iteration,
+                "env_steps": env_steps,
                 "train_seconds": train_seconds,
                 "shaping_off_iteration": shaping_off_at,
             },
@@ -788,7 +802,7 @@ def train(
         it = int(current.iteration)
         results = evaluate(trainer, current, jax.random.fold_in(eval_key, it))
         train_seconds += time.perf_counter() - began
-        logger.log(it, {**results, **_time_metrics(it, steps_per_iteration, train_seconds)})
+        logger.log(it, {**results, **_time_metrics(env_steps, train_seconds)})
         return results
 
     logger = RunLogger(run_dir, resumed_at=iteration if resuming else None)
@@ -796,7 +810,7 @@ def train(
         run.iterations,
         metrics=PROGRESS_METRICS,
         start=iteration,
-        start_env_steps=iteration * steps_per_iteration,
+        start_env_steps=env_steps,
         plain=None if progress else True,
         plain_every=1 if progress else 10**9,
     )
@@ -816,19 +830,27 @@ def train(
                     )
                     break
                 count = min(run.iterations_per_chunk, run.iterations - iteration)
+                game = schedule[iteration // run.iterations_per_chunk]
+                game_trainer = trainers[game]
+                steps_per_iteration = game_configs[game].env_steps_per_iteration
                 began = time.perf_counter()
-                new_state, metrics = trainer.update(state, count)
+                new_state, metrics = game_trainer.update(
+                    _with_games(state, game_configs[game]), count
+                )
                 rows = _host_metrics(metrics)  # blocks until the chunk is done
                 chunk_seconds = time.perf_counter() - began
-                state = new_state
+                state = _with_games(new_state, game_configs[config.env.scenario])
                 before, iteration = iteration, int(state.iteration)
                 chunk_sps = count * steps_per_iteration / max(chunk_seconds, 1e-9)
                 for offset, row in enumerate(rows):
                     it = before + offset + 1
+                    env_steps += steps_per_iteration
                     # The chunk's time spread evenly over its iterations.
                     seconds = train_seconds + chunk_seconds * (offset + 1) / len(rows)
-                    row = {**row, **_time_metrics(it, steps_per_iteration, seconds)}
+                    row = {**row, **_time_metrics(env_steps, seconds)}
                     row["time/env_steps_per_s"] = chunk_sps
+                    if config.env.mix:
+                        row["env/players_per_team"] = float(game_configs[game].players_per_team)
                     logger.log(it, row)
                     if row["env/shaping_switched_off"] == 1.0:
                         shaping_off_at = it
@@ -839,7 +861,7 @@ def train(
                     evaluation = run_eval(state)
                     evaluated_at = iteration
                 shown.update(evaluation)
-                bar.update(iteration, iteration * steps_per_iteration, shown)
+                bar.update(iteration, env_steps, shown)
                 if _due(before, iteration, run.checkpoint_every):
                     checkpoint_path = save(state)
                 if on_chunk is not None:
@@ -869,7 +891,7 @@ def train(
     return TrainResult(
         state=state,
         iteration=int(state.iteration),
-        env_steps=int(state.iteration) * steps_per_iteration,
+        env_steps=env_steps,
         interrupted=interrupted,
         out_of_time=out_of_time,
         run_dir=run_dir,
@@ -880,9 +902,18 @@ def train(
     )
 
 
-def _time_metrics(iteration: int, steps_per_iteration: int, seconds: float) -> dict[str, float]:
+def _with_games(state: TrainState, config: TrainConfig) -> TrainState:
+    """``state`` with the per-game opponent indices of ``config``'s games per iteration (a mixed
+    run's sizes differ in games; the indices are zeros for the opponents a mix allows)."""
+    games = config.run.games_per_iteration
+    if state.opponent.indices.shape == (games,):
+        return state
+    return state.replace(opponent=state.opponent.replace(indices=jnp.zeros((games,), jnp.int32)))
+
+
+def _time_metrics(env_steps: int, seconds: float) -> dict[str, float]:
     return {
-        "time/env_steps": float(iteration * steps_per_iteration),
+        "time/env_steps": float(env_steps),
         "time/hours": seconds / 3600.0,
     }
 

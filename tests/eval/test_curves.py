@@ -84,3 +84,21 @@ def test_curves_command_and_errors(tmp_path, capsys) -> None:
         plot_learning_curves([tmp_path / "only"], tmp_path / "d.png", against="wizards")
     with pytest.raises(FileNotFoundError, match="metrics.csv"):
         plot_learning_curves([tmp_path / "missing"], tmp_path / "d.png")
+
+
+def test_labelled_groups_overlay_one_pooled_curve_per_setting(tmp_path, capsys) -> None:
+    for seed in range(3):
+        _write_run(tmp_path / f"p{seed}", seed)
+    _write_run(tmp_path / "league", 1, iterations=range(0, 51, 10))
+    out = tmp_path / "overlay.png"
+    finals = eval_main(["curves", f"polyak={tmp_path / 'p0'},{tmp_path / 'p1'},{tmp_path / 'p2'}",
+                        f"league={tmp_path / 'league'}", "--out", str(out), "--x", "env_steps"])
+    # Seeds pooled within a label: the last values 0.98, 1.0, 1.02 average to 1.0.
+    assert finals == pytest.approx({"polyak": 1.0, "league": 0.5})
+    assert out.stat().st_size > 0
+    assert "polyak: last mean 1.000 against naive" in capsys.readouterr().out
+    with pytest.raises(ValueError, match="labels repeat"):
+        eval_main(["curves", f"a={tmp_path / 'p0'}", f"a={tmp_path / 'p1'}",
+                   "--out", str(out)])
+    with pytest.raises(ValueError, match="write LABEL=RUN"):
+        eval_main(["curves", "a=", "--out", str(out)])

@@ -86,7 +86,8 @@ class CurvesArgs:
     """Learning curves over seeds (thesis figure 6.4) from training runs' metrics.csv."""
 
     runs: tyro.conf.Positional[Annotated[tuple[str, ...], tyro.conf.arg(metavar="RUN...")]]
-    """Run directories (each with metrics.csv), one per seed."""
+    """Run directories (each with metrics.csv), one per seed; or, to overlay settings (figure
+    6.6), LABEL=RUN[,RUN...] groups, one curve per label with its seeds pooled."""
     against: str = "naive"
     """The team whose outcome is plotted."""
     out: Path = Path("learning_curves.png")
@@ -277,6 +278,17 @@ def curves_command(args: CurvesArgs) -> Any:
 
     if not args.runs:
         raise ValueError("no run directories given: e.g. elevens curves runs/a runs/b")
+    if any("=" in run for run in args.runs):
+        from elevens.eval.curves import parse_run_groups, plot_run_groups
+
+        finals = plot_run_groups(
+            parse_run_groups(args.runs), args.out, against=args.against, x_axes=args.x,
+            metric=args.metric, title=args.title,
+        )
+        for label, final in finals.items():
+            print(f"{label}: last mean {final:.3f} against {args.against}")
+        print(f"wrote {args.out}")
+        return finals
     summary = plot_learning_curves(
         args.runs, args.out, against=args.against, x_axes=args.x, metric=args.metric,
         threshold=args.threshold, title=args.title,

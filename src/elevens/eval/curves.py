@@ -239,3 +239,91 @@ def plot_learning_curves(
         path=out, runs=tuple(names), against=against, first_outperformed=firsts,
         final_mean=final_mean,
     )
+
+
+# --------------------------------------------------------------------------------------------
+# Several runs side by side (thesis figure 6.6)
+# --------------------------------------------------------------------------------------------
+
+
+def parse_run_groups(specs: Sequence[str]) -> list[tuple[str, list[Path]]]:
+    """``LABEL=RUN[,RUN...]`` words as (label, run directories); a bare ``RUN`` is labelled by
+    its folder name. The runs of one label are seeds of one setting, pooled into its band."""
+    groups: list[tuple[str, list[Path]]] = []
+    for spec in specs:
+        label, sep, rest = spec.partition("=")
+        if not sep:
+            label, rest = Path(spec).name, spec
+        runs = [Path(part) for part in rest.split(",") if part]
+        if not label or not runs:
+            raise ValueError(
+                f"run group {spec!r} is invalid: write LABEL=RUN[,RUN...] (e.g. "
+                "polyak=runs/p0,runs/p1) or a run directory"
+            )
+        groups.append((label, runs))
+    labels = [label for label, _ in groups]
+    if len(set(labels)) != len(labels):
+        raise ValueError(f"run group labels repeat: {', '.join(labels)}; give each its own")
+    return groups
+
+
+def _read_run(run_dir: Path) -> dict[str, Any]:
+    from elevens.train.logging import read_metrics_csv
+
+    csv_path = run_dir if run_dir.is_file() else run_dir / "metrics.csv"
+    if not csv_path.is_file():
+        raise FileNotFoundError(f"{csv_path} does not exist (is {run_dir} a run directory?)")
+    return read_metrics_csv(csv_path)
+
+
+def plot_run_groups(
+    groups: Sequence[tuple[str, Sequence[Path]]],
+    out: str | Path,
+    *,
+    against: str = "naive",
+    x_axes: Sequence[str] = ("hours", "env_steps"),
+    metric: str = DEFAULT_METRIC,
+    title: str | None = None,
+) -> dict[str, float]:
+    """One curve per group (its mean over the group's runs, with a ± 1 std band for several),
+    overlaid in one panel per x axis, labelled by the group. Returns each group's final mean."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    if not groups:
+        raise ValueError("no runs given")
+    name = metric.format(team=against) if "{team}" in metric else metric
+    read = [(label, [(run.name, _read_run(run)) for run in runs]) for label, runs in groups]
+    figure, axes = plt.subplots(
+        1, len(x_axes), figsize=(5.6 * len(x_axes), 4.4), sharey=True, squeeze=False
+    )
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    finals: dict[str, float] = {}
+    for axis, alias in zip(axes[0], x_axes, strict=True):
+        x_name, x_label, divisor, _ = x_metric(alias)
+        for index, (label, runs) in enumerate(read):
+            series = [run_series(curves, name, x_name, run) for run, curves in runs]
+            curve = band(series)
+            colour = colours[index % len(colours)]
+            count = f"{curve.runs} run{'s' if curve.runs > 1 else ''}"
+            axis.plot(curve.x / divisor, curve.mean, color=colour, linewidth=2,
+                      label=f"{label} ({count})")
+            if curve.runs > 1:
+                axis.fill_between(curve.x / divisor, curve.mean - curve.std,
+                                  curve.mean + curve.std, color=colour, alpha=0.15)
+            finals[label] = float(np.mean([s.y[-1] for s in series if s.y.size]))
+        axis.axhline(OUTPERFORM_THRESHOLD, color="grey", linestyle=":", linewidth=1)
+        axis.set_xlabel(x_label)
+        axis.set_ylim(-0.02, 1.02)
+        axis.grid(alpha=0.3)
+        axis.legend(loc="lower right", fontsize=8)
+    axes[0][0].set_ylabel(f"mean outcome against {against}\n(win 1, draw 0.5, loss 0)")
+    figure.suptitle(title or f"Against {against}: " + ", ".join(label for label, _ in read))
+    figure.tight_layout()
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    figure.savefig(out, dpi=110)
+    plt.close(figure)
+    return finals

@@ -11,6 +11,7 @@ from typing import Annotated
 
 import tyro
 
+from elevens.cli_checks import EXIT_BAD_INPUT, EXIT_INTERRUPTED, check_numeric_args, one_line
 from elevens.eval.cli_eval import (
     AnalyzeArgs,
     CurvesArgs,
@@ -105,37 +106,22 @@ def _set_host_devices(count: int) -> None:
 
 
 def play(args: PlayArgs) -> Path | None:
-    """Play a game and write it to ``args.out`` (and ``args.replay``). Bad teams, sizes and
-    paths are one line on stderr and exit 2."""
+    """Play a game and write it to ``args.out`` (and ``args.replay``)."""
     from elevens.eval.play import play_and_render
-    from elevens.train.checkpoint import CheckpointError
-    from elevens.train.cli_train import exit_with_error
 
-    try:
-        return play_and_render(
-            home=args.home, away=args.away, players=args.players, out=args.out,
-            seed=args.seed, steps=args.steps, fps=args.fps, scale=args.scale, view=args.view,
-            replay=args.replay, deterministic=args.deterministic,
-        )
-    except (ValueError, FileNotFoundError) as error:
-        exit_with_error("elevens play: error", error, 2)
-    except CheckpointError as error:
-        exit_with_error("elevens play: error", error, 1)
+    return play_and_render(
+        home=args.home, away=args.away, players=args.players, out=args.out,
+        seed=args.seed, steps=args.steps, fps=args.fps, scale=args.scale, view=args.view,
+        replay=args.replay, deterministic=args.deterministic,
+    )
 
 
 def export_team(args: ExportTeamArgs) -> Path:
-    """Export ``args.team`` to ``args.out``; bad specs and damaged files exit 2."""
+    """Export ``args.team`` to ``args.out``."""
     from elevens.eval.teams import export_team as export
-    from elevens.train.checkpoint import CheckpointError
-    from elevens.train.cli_train import exit_with_error
 
-    try:
-        card = None if args.card is None else args.card.read_text(encoding="utf-8")
-        folder, config = export(args.team, args.out, card)
-    except (ValueError, OSError) as error:
-        exit_with_error("elevens export-team: error", error, 2)
-    except CheckpointError as error:  # as elevens train: a damaged checkpoint is exit 1
-        exit_with_error("elevens export-team: error", error, 1)
+    card = None if args.card is None else args.card.read_text(encoding="utf-8")
+    folder, config = export(args.team, args.out, card)
     print(f"wrote {folder} ({config.env.scenario}, {config.preset} preset)")
     return folder
 
@@ -170,22 +156,48 @@ Command = (
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Entry point of the ``elevens`` console script."""
+    """Entry point of the ``elevens`` console script.
+
+    Exit status: 0 done, 2 bad input (one line on stderr), 130 interrupted, 1 anything else
+    (with its traceback). ``--debug`` anywhere shows the traceback of bad input too.
+    """
     argv = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in argv
+    argv = [arg for arg in argv if arg != "--debug"]
     # `elevens bench env ...` reads better than a hyphenated subcommand; accept both.
     if len(argv) >= 2 and argv[0] in ("bench", "robocup") and not argv[1].startswith("-"):
         argv = [f"{argv[0]}-{argv[1]}", *argv[2:]]
     if argv and argv[0] == "train":
         argv = ["train", *command_flags_first(argv[1:])]
     args = tyro.cli(Command, args=argv, prog="elevens")
+    command = f"elevens {argv[0].replace('-', ' ', 1) if argv else ''}".rstrip()
     # SIGTERM (kill, a job scheduler) takes Ctrl-C's path: a training run (simulator or
     # RoboCup) writes its checkpoint, and every rcssserver a command started is stopped.
     # SIGKILL cannot be caught.
     previous = signal.signal(signal.SIGTERM, _interrupt)
     try:
         _run(args)
+    except KeyboardInterrupt:
+        if debug:
+            raise
+        print(f"{command}: interrupted", file=sys.stderr)
+        raise SystemExit(EXIT_INTERRUPTED) from None
+    except _expected_errors() as error:
+        if debug:
+            raise
+        print(f"{command}: error: {one_line(error)}", file=sys.stderr)
+        raise SystemExit(EXIT_BAD_INPUT) from None
     finally:
         signal.signal(signal.SIGTERM, previous)
+
+
+def _expected_errors() -> tuple[type[BaseException], ...]:
+    """What bad input raises: the commands' ValueErrors (ReplayError, RunRefusedError,
+    ShippedTeamError ...), missing files (RcssserverNotFound too) and damaged checkpoints."""
+    from elevens.train.checkpoint import CheckpointError
+
+    return (ValueError, FileNotFoundError, NotADirectoryError, IsADirectoryError,
+            CheckpointError)
 
 
 def _interrupt(signum: int, frame: object) -> None:
@@ -193,6 +205,7 @@ def _interrupt(signum: int, frame: object) -> None:
 
 
 def _run(args: object) -> None:
+    check_numeric_args(args)
     if isinstance(args, PlayArgs):
         play(args)
     elif isinstance(args, ExportTeamArgs):

@@ -360,7 +360,7 @@ def test_resume_refuses_another_config_and_fresh_runs_refuse_old_dirs(
     longer = dataclasses.replace(config, run=dataclasses.replace(config.run, iterations=4))
     with pytest.warns(UserWarning, match="opponent.league_window"):
         assert train(longer, resume=True, progress=False).iteration == 4
-    # A damaged checkpoint: exit code 1, the message names the file, nothing is deleted. (The
+    # A damaged checkpoint: exit code 2, the message names the file, nothing is deleted. (The
     # list of leaves is damaged: it is read before Orbax's, whose damaged reads test_checkpoint
     # covers.)
     tree_file = checkpoints / "4" / "tree" / TREE_FILE
@@ -369,7 +369,7 @@ def test_resume_refuses_another_config_and_fresh_runs_refuse_old_dirs(
     even_longer = dataclasses.replace(config, run=dataclasses.replace(config.run, iterations=6))
     with pytest.raises(SystemExit) as exit_info:
         train_command(TrainArgs(config=even_longer, resume=True, progress=False))
-    assert exit_info.value.code == 1
+    assert exit_info.value.code == 2
     error = capsys.readouterr().err
     assert "elevens train: error: corrupt checkpoint: cannot parse JSON file" in error
     assert str(tree_file) in error

@@ -11,8 +11,8 @@ import sys
 import time
 from dataclasses import asdict, dataclass
 
+from elevens.cli_checks import EXIT_INTERRUPTED, exit_with_error
 from elevens.robocup.server import RcssserverNotFound, find_rcssserver
-from elevens.train.cli_train import EXIT_INTERRUPTED, exit_with_error
 
 
 @dataclass(frozen=True)
@@ -180,7 +180,7 @@ def train(args: RoboCupTrainArgs) -> None:
     except RunRefusedError as error:  # another run's checkpoints in --run-dir
         exit_with_error("elevens robocup train: error", error, 2)
     except CheckpointError as error:  # a damaged checkpoint: the message names the file
-        exit_with_error("elevens robocup train: error", error, 1)
+        exit_with_error("elevens robocup train: error", error, 2)
     print(
         f"robocup train: {result.iterations} iterations, {result.env_steps} env steps, "
         f"{result.episodes} episodes, {result.restarts} server restarts in {result.wall_s:.0f} s; "

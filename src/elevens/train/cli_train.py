@@ -15,12 +15,12 @@ Heavy imports (JAX, the trainer) happen inside the commands, so ``elevens --help
 from __future__ import annotations
 
 import dataclasses
-import sys
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Annotated, Any, NoReturn, Union
+from typing import TYPE_CHECKING, Annotated, Any, Union
 
 import tyro
 
+from elevens.cli_checks import EXIT_INTERRUPTED, exit_with_error
 from elevens.train.config import PRESETS, TrainConfig, make_config
 
 _PRESET_HELP = {
@@ -89,7 +89,7 @@ def train_command(args: TrainArgs) -> Any:
     except RunRefusedError as error:  # another run's checkpoints, or a mismatched resume
         exit_with_error("elevens train: error", error, 2)
     except CheckpointError as error:  # a damaged checkpoint: the message names the file
-        exit_with_error("elevens train: error", error, 1)
+        exit_with_error("elevens train: error", error, 2)
     if result.interrupted:
         state = "interrupted (Ctrl-C or SIGTERM)"
     elif result.out_of_time:
@@ -112,17 +112,6 @@ def train_command(args: TrainArgs) -> Any:
         # (its checkpoint written; --resume continues it) from a finished one.
         raise SystemExit(EXIT_INTERRUPTED)
     return result
-
-
-EXIT_INTERRUPTED = 130
-"""Exit status of a training command stopped by Ctrl-C or SIGTERM (after its checkpoint)."""
-
-
-def exit_with_error(prefix: str, error: Exception, code: int) -> NoReturn:
-    """Print ``prefix: error`` to stderr and exit with ``code``, without a traceback (the
-    commands' usage errors, exit 2, and damaged checkpoints, exit 1)."""
-    print(f"{prefix}: {error}", file=sys.stderr)
-    raise SystemExit(code) from None
 
 
 COMMAND_FLAGS = ("--resume", "--no-resume", "--progress", "--no-progress")

@@ -1,0 +1,81 @@
+"""What every subcommand shares to refuse bad input: one-line errors and range checks.
+
+Exit status of every ``elevens`` command: 0 done, 2 bad input (one line on stderr), 130
+interrupted (a training run after its checkpoint), 1 anything else (with its traceback).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from typing import NoReturn
+
+EXIT_BAD_INPUT = 2
+"""A command refused for its input: a bad value, an unknown team, a missing or damaged file, a
+missing rcssserver."""
+EXIT_INTERRUPTED = 130
+"""A command stopped by Ctrl-C or SIGTERM (128 + SIGINT, as a shell reports it)."""
+
+
+def one_line(error: BaseException) -> str:
+    """An error's message on one line (the lines of a multi-line message joined by '; ')."""
+    lines = [line.strip() for line in str(error).splitlines() if line.strip()]
+    return "; ".join(lines) or type(error).__name__
+
+
+def exit_with_error(prefix: str, error: BaseException, code: int = EXIT_BAD_INPUT) -> NoReturn:
+    """Print ``prefix: error`` to stderr on one line and exit with ``code``, no traceback."""
+    print(f"{prefix}: {one_line(error)}", file=sys.stderr)
+    raise SystemExit(code) from None
+
+
+NUMERIC_RANGES: dict[str, tuple[float, float]] = {
+    # flag name: (lowest, highest) allowed, for every numeric flag of every subcommand
+    "games": (1, math.inf),
+    "players": (1, 11),
+    "steps": (1, math.inf),
+    "episodes": (1, math.inf),
+    "servers": (1, math.inf),
+    "iterations": (1, math.inf),
+    "batch": (1, math.inf),
+    "repeats": (1, math.inf),
+    "loop_steps": (1, math.inf),
+    "host_devices": (1, math.inf),
+    "episode_length": (1, math.inf),
+    "chunk_size": (1, math.inf),
+    "bootstrap": (0, math.inf),
+    "replays": (0, math.inf),
+    "fps": (1, math.inf),
+    "scale": (1, math.inf),
+    "cycles": (1, math.inf),
+    "checkpoint_every": (1, math.inf),
+    "port": (0, 65535),
+    "seed": (0, 2**31 - 1),
+    "view": (0, math.inf),
+    "threshold": (0.0, 1.0),
+    "minutes": (1e-9, math.inf),
+    "learning_rate": (1e-12, math.inf),
+}
+"""Every numeric field of the subcommands' args, by name (tests/test_cli.py checks that none is
+missing). Finer checks that need the game (``--view`` against the players) come later."""
+
+
+def check_numeric_args(args: object) -> None:
+    """Raise ``ValueError`` naming the first numeric flag of ``args`` (a subcommand's args
+    dataclass) outside ``NUMERIC_RANGES``: before anything is compiled or started."""
+    import dataclasses
+
+    if not dataclasses.is_dataclass(args):
+        return
+    for field in dataclasses.fields(args):
+        value = getattr(args, field.name)
+        values = value if isinstance(value, tuple) else (value,)
+        numbers = [v for v in values if isinstance(v, int | float) and not isinstance(v, bool)]
+        if not numbers or field.name not in NUMERIC_RANGES:
+            continue
+        low, high = NUMERIC_RANGES[field.name]
+        flag = "--" + field.name.replace("_", "-")
+        for number in numbers:
+            if not (math.isfinite(number) and low <= number <= high):
+                allowed = f">= {low:g}" if high == math.inf else f"from {low:g} to {high:g}"
+                raise ValueError(f"{flag}={number!r} is invalid: it must be {allowed}")

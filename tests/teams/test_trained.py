@@ -122,3 +122,25 @@ def test_play_takes_any_team_writes_a_replay_and_refuses_unknown_names(
     error = capsys.readouterr().err.strip()
     assert error.startswith("elevens play: error: ") and "\n" not in error
     assert "random, naive, teamwork, elevens-11v11, elevens-2v2" in error
+
+
+def test_a_damaged_latest_checkpoint_names_the_intact_one(
+    checkpoint: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import shutil
+
+    from elevens.train.checkpoint import TREE_FILE, CheckpointError
+
+    run = tmp_path / "run"
+    shutil.copytree(checkpoint, run)
+    shutil.copytree(run / "checkpoints" / "0", run / "checkpoints" / "1")
+    (run / "checkpoints" / "1" / "tree" / TREE_FILE).write_text("{not json")
+    with pytest.raises(CheckpointError, match=f"checkpoint 0 is intact: use {run}@0"):
+        load_team(str(run))
+    assert load_team(f"{run}@0").trained_players == 2
+    with pytest.raises(SystemExit) as exit_info:
+        main(["tournament", str(run), "naive", "--games", "2", "--players", "2",
+              "--out", str(tmp_path / "t")])
+    assert exit_info.value.code == 2
+    line = capsys.readouterr().err.strip()
+    assert "\n" not in line and line.endswith(f"checkpoint 0 is intact: use {run}@0")

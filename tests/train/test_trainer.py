@@ -373,7 +373,18 @@ def test_resume_refuses_another_config_and_fresh_runs_refuse_old_dirs(
     error = capsys.readouterr().err
     assert "elevens train: error: corrupt checkpoint: cannot parse JSON file" in error
     assert str(tree_file) in error
+    assert f"checkpoint 2 ({checkpoints / '2'}) is intact: pass --resume-from-last-good" in error
     assert files_under(checkpoints) == damaged
+    # --resume-from-last-good goes on from iteration 2; the damaged checkpoint is kept aside.
+    result = train_command(
+        TrainArgs(config=even_longer, resume_from_last_good=True, progress=False)
+    )
+    assert result.iteration == 6
+    aside = tmp_path / "damaged_checkpoints" / "4"
+    assert (aside / "tree" / TREE_FILE).read_text() == "{not json"
+    assert "checkpoint 4 is damaged" in (tmp_path / "events.log").read_text()
+    steps = read_metrics_csv(tmp_path)["train/mean_score"].steps
+    np.testing.assert_array_equal(steps, [1, 2, 3, 4, 5, 6])  # iterations 3, 4 replaced
 
 
 def test_ctrl_c_writes_a_checkpoint_and_the_run_can_continue(tmp_path: Path) -> None:

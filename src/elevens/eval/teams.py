@@ -23,7 +23,7 @@ import dataclasses
 import os
 import re
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import jax
 import jax.numpy as jnp
@@ -234,6 +234,14 @@ def _restore_train_state(checkpointer: Any, step: int, config: Any) -> Any:
     return state
 
 
+def _intact_train_state_step(checkpointer: Any, before: int, config: Any) -> int | None:
+    """The newest step before ``before`` whose TrainState restores, or None."""
+    from elevens.train.trainer import make_trainer
+
+    target = jax.eval_shape(make_trainer(config).init, jax.random.key(0))
+    return cast(int | None, checkpointer.last_intact_step(target, before))
+
+
 def load_train_state(path: Path, iteration: int | None = None) -> tuple[Any, Any]:
     """(TrainConfig, TrainState) of a training checkpoint (see ``_open_checkpoint``)."""
     checkpointer, step, config = _open_checkpoint(path, iteration)
@@ -266,9 +274,14 @@ def _load_checkpoint(
             except CheckpointError as error:
                 errors.append(f"as policy variables: {error}")
         if policy_params is None:
+            hint = ""
+            if iteration is None:
+                good = _intact_train_state_step(checkpointer, step, config)
+                if good is not None:
+                    hint = f"; checkpoint {good} is intact: use {path}@{good}"
             raise CheckpointError(
                 f"checkpoint {checkpointer.step_directory(step)} holds neither a TrainState "
-                "nor policy variables {'params': ...}: " + "; ".join(errors)
+                "nor policy variables {'params': ...}: " + "; ".join(errors) + hint
             )
     finally:
         checkpointer.close()

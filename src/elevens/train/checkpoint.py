@@ -41,6 +41,7 @@ import dataclasses
 import enum
 import json
 import os
+import shutil
 import zlib
 from collections.abc import Mapping
 from pathlib import Path
@@ -485,6 +486,33 @@ class Checkpointer:
             raise CheckpointError(f"corrupt checkpoint: {path} has no list of leaves")
         return tree["leaves"]
 
+    def last_intact_step(self, target: PyTree, before: int) -> int | None:
+        """The newest step before ``before`` that restores into ``target`` (its checksums, tree
+        and JSON all intact), or None. Reads each candidate in full, newest first."""
+        for step in sorted((s for s in self.all_steps() if s < before), reverse=True):
+            try:
+                self.restore(target, step)
+            except CheckpointError:
+                continue
+            return step
+        return None
+
+    def set_aside(self, step: int, destination: str | os.PathLike[str]) -> Path:
+        """Move step ``step``'s directory into ``destination`` (kept for a person to look at,
+        never deleted), so the run can save that step again. Returns its new path."""
+        source = self.step_directory(step)
+        folder = Path(destination)
+        folder.mkdir(parents=True, exist_ok=True)
+        target = folder / str(step)
+        suffix = 1
+        while target.exists():
+            suffix += 1
+            target = folder / f"{step}.{suffix}"
+        shutil.move(str(source), str(target))
+        if self._manager is not None:
+            self._manager.reload()
+        return target
+
     def read_config(self, step: int | None = None) -> dict[str, Any]:
         """The config of ``step`` (default: the latest), without reading any array."""
         step_dir = self.step_directory(self._resolve_step(step))
@@ -545,8 +573,8 @@ def _match_leaves(
     if missing or extra:
         raise CheckpointError(
             f"checkpoint {where} has another tree structure than the restore target: "
-            f"leaves the target has but the checkpoint lacks: {missing or 'none'}; "
-            f"leaves the checkpoint has but the target lacks: {extra or 'none'}"
+            f"leaves the target has but the checkpoint lacks: {_some(missing)}; "
+            f"leaves the checkpoint has but the target lacks: {_some(extra)}"
         )
     plan = []
     for leaf in target:
@@ -585,6 +613,14 @@ def _match_leaves(
             data_dtype = dtype
         plan.append((entry, data_shape, data_dtype))
     return plan
+
+
+def _some(names: list[str], shown: int = 5) -> str:
+    """The first few names and how many more (a whole tree's names are kilobytes long)."""
+    if not names:
+        return "none"
+    more = len(names) - shown
+    return str(names[:shown]) + (f" and {more} more" if more > 0 else "")
 
 
 def load_config(directory: str | os.PathLike[str], step: int | None = None) -> dict[str, Any]:

@@ -58,6 +58,9 @@ class TrainArgs:
     """Continue from the latest checkpoint in run.run_dir (its config must match)."""
     progress: bool = True
     """Show the progress bar (plain lines when not on a terminal)."""
+    resume_from_last_good: bool = False
+    """With --resume: if the latest checkpoint is damaged, continue from the newest intact one
+    (the damaged ones move to run_dir/damaged_checkpoints; nothing is deleted)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -85,7 +88,10 @@ def train_command(args: TrainArgs) -> Any:
         # A usage error like the ones tyro reports for a single field: no traceback, exit 2.
         exit_with_error("elevens train: error", error, 2)
     try:
-        result = train(config, resume=args.resume, progress=args.progress)
+        result = train(
+            config, resume=args.resume or args.resume_from_last_good, progress=args.progress,
+            resume_from_last_good=args.resume_from_last_good,
+        )
     except RunRefusedError as error:  # another run's checkpoints, or a mismatched resume
         exit_with_error("elevens train: error", error, 2)
     except CheckpointError as error:  # a damaged checkpoint: the message names the file
@@ -114,7 +120,10 @@ def train_command(args: TrainArgs) -> Any:
     return result
 
 
-COMMAND_FLAGS = ("--resume", "--no-resume", "--progress", "--no-progress")
+COMMAND_FLAGS = (
+    "--resume", "--no-resume", "--progress", "--no-progress", "--resume-from-last-good",
+    "--no-resume-from-last-good",
+)
 """TrainArgs' own flags; tyro takes them only before the preset."""
 
 

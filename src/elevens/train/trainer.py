@@ -699,6 +699,7 @@ def train(
     resume: bool = False,
     progress: bool = True,
     on_chunk: ChunkHook | None = None,
+    resume_from_last_good: bool = False,
 ) -> TrainResult:
     """Train ``config`` from scratch (or from the latest checkpoint in its run_dir, ``resume``).
 
@@ -719,8 +720,12 @@ def train(
         progress: show the progress bar (or plain progress lines when not on a terminal).
         on_chunk: called after each chunk's logging with the new state and the last iteration's
             metrics (tests use it; raising KeyboardInterrupt there acts as a Ctrl-C).
+        resume_from_last_good: when the latest checkpoint is damaged, resume from the newest
+            intact one; the damaged ones after it move to ``run_dir/damaged_checkpoints``
+            (kept, not deleted). Without it a damaged latest checkpoint is a
+            ``CheckpointError`` that names it and the newest intact one.
     """
-    from elevens.train.checkpoint import Checkpointer
+    from elevens.train.checkpoint import Checkpointer, CheckpointError
     from elevens.train.logging import RunLogger, TrainProgress
 
     validate(config)
@@ -744,8 +749,13 @@ def train(
             checkpointer, resume, "resume=True (--resume)", "run.run_dir"
         )
         resuming = latest is not None
+        damage: CheckpointError | None = None
+        fallback = ""
         if resuming:
-            check_resumable(checkpointer, config)
+            try:
+                check_resumable(checkpointer, config)
+            except CheckpointError as error:  # its config.json: an earlier one may serve
+                damage = error
         start = None
         if run.init_from and not resuming:
             _, start = load_start_params(run.init_from, config)
@@ -754,7 +764,23 @@ def train(
         state = trainer.init(jax.random.key(run.seed), start)
         env_steps = 0  # game steps played, over all sessions of the run
         if resuming:
-            state, _, meta = checkpointer.restore(state)
+            assert latest is not None
+            fresh = state
+            if damage is None:
+                try:
+                    state, _, meta = checkpointer.restore(fresh)
+                except CheckpointError as error:
+                    damage = error
+            if damage is not None:
+                step = _last_good_step(
+                    checkpointer, fresh, latest, damage, resume_from_last_good, run_dir
+                )
+                check_resumable(checkpointer, config, step)
+                state, _, meta = checkpointer.restore(fresh, step)
+                fallback = (
+                    f"checkpoint {latest} is damaged ({damage}); resumed from checkpoint "
+                    f"{step}, the damaged ones are in {run_dir / DAMAGED_DIR}"
+                )
             train_seconds = float(meta.get("train_seconds", 0.0))
             shaping_off_at = meta.get("shaping_off_iteration")
             env_steps = int(
@@ -806,6 +832,8 @@ def train(
         return results
 
     logger = RunLogger(run_dir, resumed_at=iteration if resuming else None)
+    if fallback:
+        logger.event(iteration, fallback)
     bar = TrainProgress(
         run.iterations,
         metrics=PROGRESS_METRICS,
@@ -902,6 +930,33 @@ def train(
     )
 
 
+DAMAGED_DIR = "damaged_checkpoints"
+
+
+def _last_good_step(
+    checkpointer: Any, target: TrainState, latest: int, damage: Exception, use_it: bool,
+    run_dir: Path,
+) -> int:
+    """The step a resume falls back to when checkpoint ``latest`` is damaged (``damage``):
+    with ``use_it``, the newest intact one, after moving the damaged ones aside; otherwise a
+    ``CheckpointError`` naming the damage and what is intact."""
+    from elevens.train.checkpoint import CheckpointError
+
+    good = checkpointer.last_intact_step(target, before=latest)
+    if good is None:
+        raise CheckpointError(f"{damage}; no earlier checkpoint is intact") from damage
+    if not use_it:
+        raise CheckpointError(
+            f"{damage}; checkpoint {good} ({checkpointer.step_directory(good)}) is intact: "
+            f"pass --resume-from-last-good to continue from it (the damaged ones move to "
+            f"{run_dir / DAMAGED_DIR}, nothing is deleted)"
+        ) from damage
+    for step in checkpointer.all_steps():
+        if step > good:
+            checkpointer.set_aside(step, run_dir / DAMAGED_DIR)
+    return int(good)
+
+
 def _with_games(state: TrainState, config: TrainConfig) -> TrainState:
     """``state`` with the per-game opponent indices of ``config``'s games per iteration (a mixed
     run's sizes differ in games; the indices are zeros for the opponents a mix allows)."""
@@ -984,11 +1039,12 @@ def load_start_params(text: str, config: TrainConfig) -> tuple[TrainConfig, Lear
     return source, params
 
 
-def check_resumable(checkpointer: Any, config: TrainConfig) -> None:
-    """Raise ``RunRefusedError`` unless the latest checkpoint's config matches ``config`` (outside
-    ``RESUMABLE_FIELDS``), listing every difference. Reads only config.json, so it runs before
-    anything compiles (``train`` and ``elevens robocup train`` call it on a resume)."""
-    saved_dict = checkpointer.read_config()
+def check_resumable(checkpointer: Any, config: TrainConfig, step: int | None = None) -> None:
+    """Raise ``RunRefusedError`` unless the checkpoint's config (``step``, default the latest)
+    matches ``config`` (outside ``RESUMABLE_FIELDS``), listing every difference. Reads only
+    config.json, so it runs before anything compiles (``train`` and ``elevens robocup train``
+    call it on a resume)."""
+    saved_dict = checkpointer.read_config(step)
     try:
         saved = TrainConfig.from_dict(saved_dict, fill_missing=True)
     except (TypeError, ValueError) as error:

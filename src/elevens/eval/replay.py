@@ -305,6 +305,10 @@ def load_replay(path: str | Path) -> Replay:
     where = str(path)
     if not path.is_file():
         raise ReplayError(f"{where}: no such replay file")
+    with path.open("rb") as handle:
+        magic = handle.read(4)
+    if magic != b"PK\x03\x04":  # every .npz is a zip archive; numpy's own error talks of pickles
+        raise ReplayError(f"{where}: not an .npz archive (not an elevens replay?)")
     try:
         with np.load(path, allow_pickle=False) as archive:
             names = set(archive.files)

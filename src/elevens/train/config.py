@@ -556,9 +556,9 @@ def validate(config: TrainConfig) -> None:
     _require(isinstance(config, TrainConfig), f"expected a TrainConfig, got {type(config)}")
     _validate_env(config.env)
     _validate_network(config.network, config.env.players_per_team)
+    _validate_run(config.run)  # before the batch check, which divides by run fields
     _validate_ppo(config)
     _validate_opponent(config.opponent)
-    _validate_run(config.run)
     _validate_mix(config)
 
 

@@ -170,7 +170,10 @@ def main(argv: list[str] | None = None) -> None:
     if argv and argv[0] == "train":
         argv = ["train", *command_flags_first(argv[1:])]
     args = tyro.cli(Command, args=argv, prog="elevens")
-    command = f"elevens {argv[0].replace('-', ' ', 1) if argv else ''}".rstrip()
+    name = argv[0] if argv else ""
+    if name.startswith(("bench-", "robocup-")):
+        name = name.replace("-", " ", 1)
+    command = f"elevens {name}".rstrip()
     # SIGTERM (kill, a job scheduler) takes Ctrl-C's path: a training run (simulator or
     # RoboCup) writes its checkpoint, and every rcssserver a command started is stopped.
     # SIGKILL cannot be caught.

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import statistics
 
 import numpy as np
 import pytest
@@ -101,6 +102,21 @@ def test_perfect_separation_stays_finite_and_last() -> None:
     assert [ratings.names[i] for i in ratings.order()] == ["teamwork", "naive", "random"]
     assert ratings.rating[1] == 0.0  # the anchor
     assert ratings.rating[0] < -500
+
+
+def test_an_undefeated_team_gets_an_interval_its_standard_error_implies() -> None:
+    # 64 wins of 64: a plain bootstrap resamples 64 wins every time (an interval a few Elo
+    # wide against an s.e. of hundreds); Jeffreys' half games and the Wald floor prevent it.
+    ratings = fit_bradley_terry(
+        GameCounts(("naive", "random"), np.array([[0, 64], [0, 0]]), np.zeros((2, 2), int),
+                   np.zeros((2, 2), int)),
+        bootstrap_samples=200,
+    )
+    width = ratings.ci_high - ratings.ci_low
+    z = statistics.NormalDist().inv_cdf(0.975)
+    assert np.all(width >= 2 * z * ratings.stderr - 1e-9)
+    assert np.all(ratings.ci_low <= ratings.rating) and np.all(ratings.rating <= ratings.ci_high)
+    assert ratings.stderr[0] > 100  # the s.e. is wide, so the interval is too
 
 
 def test_anchor_shifts_without_changing_gaps() -> None:

@@ -17,9 +17,14 @@ Uncertainty, two ways:
 
 * ``stderr``: from the Fisher information (the inverse of the penalised log-likelihood's negative
   Hessian at the fit), propagated to the reported (centred or anchored) ratings.
-* ``ci_low`` / ``ci_high``: a bootstrap over games. Each pair's games are resampled with
-  replacement (multinomially over its wins, draws and losses, so the schedule is kept), the
-  ratings are refitted, and the percentile interval of each reported rating is taken.
+* ``ci_low`` / ``ci_high``: a bootstrap over games. Each pair's games are resampled
+  (multinomially over its wins, draws and losses, so the schedule is kept), the ratings are
+  refitted, and the percentile interval of each reported rating is taken. The resampling
+  probabilities carry Jeffreys' half a game of each result (``(wins + 1/2) / (games + 3/2)``
+  and so on): a plain bootstrap of a perfect record (64 wins of 64) resamples 64 wins every
+  time and gives an interval a few Elo wide. The interval is then widened, where needed, to
+  hold ``rating +- z * stderr`` (z of the normal for ``confidence``), so it is never narrower
+  than the Fisher standard error implies.
 
 Both shrink like ``1 / sqrt(games)``.
 """
@@ -28,6 +33,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import statistics
 from collections.abc import Sequence
 
 import numpy as np
@@ -37,6 +43,8 @@ ELO_PER_NAT = 400.0 / math.log(10.0)
 PRIOR_STD = 5.0
 """Prior std of a rating in nats (about 870 Elo): weak for any pair with mixed results, yet
 it keeps perfectly separated teams finite."""
+JEFFREYS = 0.5
+"""Pseudo-games of each result (win, draw, loss) in the bootstrap's resampling probabilities."""
 _NEWTON_TOL = 1e-10
 _NEWTON_MAX_STEPS = 100
 
@@ -83,7 +91,7 @@ class Ratings:
     names: tuple[str, ...]
     rating: np.ndarray  # f64[N] Elo points, mean 0 (or the anchor at 0)
     stderr: np.ndarray  # f64[N] Fisher-information standard error, Elo points
-    ci_low: np.ndarray  # f64[N] bootstrap percentile interval, Elo points (NaN: no bootstrap)
+    ci_low: np.ndarray  # f64[N] bootstrap interval, at least +- z stderr, Elo (NaN: no bootstrap)
     ci_high: np.ndarray  # f64[N]
     games: np.ndarray  # i64[N] games each team played against others
     score: np.ndarray  # f64[N] each team's mean outcome in those games
@@ -239,7 +247,9 @@ def fit_bradley_terry(
         wins = np.asarray(counts.wins)[rows, columns]
         draws = np.asarray(counts.draws)[rows, columns]
         losses = np.asarray(counts.losses)[rows, columns]
-        probabilities = np.stack([wins, draws, losses], axis=-1) / pair_games[:, None]
+        probabilities = (np.stack([wins, draws, losses], axis=-1) + JEFFREYS) / (
+            pair_games[:, None] + 3 * JEFFREYS
+        )
         # All resamples at once: drawn[b, p] = (wins, draws, losses) of pair p in sample b.
         drawn = rng.multinomial(
             pair_games.astype(np.int64), probabilities, size=(bootstrap_samples, rows.size)
@@ -254,6 +264,9 @@ def fit_bradley_terry(
             samples[b] = report @ refit * ELO_PER_NAT
         tail = 100.0 * (1.0 - confidence) / 2.0
         ci_low, ci_high = np.percentile(samples, [tail, 100.0 - tail], axis=0)
+        z = statistics.NormalDist().inv_cdf(0.5 + confidence / 2.0)
+        ci_low = np.minimum(ci_low, rating - z * stderr)
+        ci_high = np.maximum(ci_high, rating + z * stderr)
 
     off_diagonal = ~np.eye(num_teams, dtype=bool)
     played = np.where(off_diagonal, games, 0.0)

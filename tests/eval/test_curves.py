@@ -78,8 +78,9 @@ def test_curves_command_and_errors(tmp_path, capsys) -> None:
     eval_main(["curves", str(tmp_path / "only"), "--against", "random", "--out",
                str(tmp_path / "c.png"), "--x", "iteration"])
     printed = capsys.readouterr().out
-    assert "first beats random (mean > 0.5) at iteration = 30" in printed
-    assert "first beats teamwork (mean > 0.5) at iteration = never" in printed
+    rule = "mean, no win and draw rates logged"
+    assert f"first beats random ({rule} above 0.5) at iteration = 30" in printed
+    assert f"first beats teamwork ({rule} above 0.5) at iteration = never" in printed
     with pytest.raises(KeyError, match="no metric 'eval/wizards/outcome'"):
         plot_learning_curves([tmp_path / "only"], tmp_path / "d.png", against="wizards")
     with pytest.raises(FileNotFoundError, match="metrics.csv"):
@@ -102,3 +103,27 @@ def test_labelled_groups_overlay_one_pooled_curve_per_setting(tmp_path, capsys) 
                    "--out", str(out)])
     with pytest.raises(ValueError, match="write LABEL=RUN"):
         eval_main(["curves", "a=", "--out", str(out)])
+
+
+def test_first_beats_needs_the_interval_above_one_half(tmp_path) -> None:
+    # 64 evaluation games: 1 win and 63 draws (mean 0.508) is noise; 48 wins 16 draws is not.
+    import json
+
+    run = tmp_path / "run"
+    with RunLogger(run, use_tensorboard=False) as logger:
+        for it, (win, draw) in enumerate([(0, 64), (1, 63), (20, 44), (48, 16)]):
+            logger.log(it, {
+                "eval/naive/outcome": (win + draw / 2) / 64, "eval/naive/win": win / 64,
+                "eval/naive/draw": draw / 64, "time/env_steps": 1000.0 * it,
+                "time/hours": 0.1 * it,
+            })
+    (run / "config.json").write_text(json.dumps({"run": {"eval_games": 64}}))
+    summary = plot_learning_curves([run], tmp_path / "c.png", x_axes=("iteration",))
+    # Iteration 1: mean 0.508, s.e. 0.008, lower end 0.493. Iteration 2: mean 0.656, s.e. 0.029,
+    # lower end 0.60.
+    assert summary.first_outperformed["iteration"]["naive"] == 2.0
+    assert summary.with_interval == {"naive"}
+    # Without the games count the mean alone decides: 0.508 at iteration 1.
+    (run / "config.json").unlink()
+    summary = plot_learning_curves([run], tmp_path / "c.png", x_axes=("iteration",))
+    assert summary.first_outperformed["iteration"]["naive"] == 1.0

@@ -97,7 +97,8 @@ class CurvesArgs:
     metric: str = "eval/{team}/outcome"
     """Metric name; {team} is replaced by each evaluated team (vertical lines) and --against."""
     threshold: float = 0.5
-    """A team counts as outperformed where the mean curve against it first rises above this."""
+    """A team counts as outperformed where the lower end of the 95% interval of the mean
+    outcome against it (from the logged win and draw rates) first rises above this."""
     title: str | None = None
     """Figure title (default: the runs and the team)."""
 
@@ -296,7 +297,9 @@ def curves_command(args: CurvesArgs) -> Any:
     for axis, teams in summary.first_outperformed.items():
         for team, x in teams.items():
             where = "never" if x is None else f"{x:.4g}"
-            print(f"first beats {team} (mean > {args.threshold}) at {axis} = {where}")
+            rule = ("95% interval" if team in summary.with_interval else "mean, no win and draw "
+                    "rates logged")
+            print(f"first beats {team} ({rule} above {args.threshold}) at {axis} = {where}")
     print(f"wrote {summary.path}")
     return summary
 

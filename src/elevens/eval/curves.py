@@ -116,10 +116,42 @@ def band(series: Sequence[Series], points: int = GRID_POINTS) -> Band:
     return Band(x=grid, mean=values.mean(axis=0), std=values.std(axis=0), runs=len(series))
 
 
-def first_above(curve: Band, threshold: float = OUTPERFORM_THRESHOLD) -> float | None:
-    """The first x where the mean is above ``threshold`` (None if it never is)."""
-    above = np.flatnonzero(curve.mean > threshold)
+def first_above(
+    curve: Band, threshold: float = OUTPERFORM_THRESHOLD, stderr: np.ndarray | None = None,
+    z: float = 0.0,
+) -> float | None:
+    """The first x where the mean is above ``threshold`` (None if it never is); with
+    ``stderr`` (on the band's grid), where the lower end ``mean - z * stderr`` is."""
+    lower = curve.mean if stderr is None else curve.mean - z * stderr
+    above = np.flatnonzero(lower > threshold)
     return float(curve.x[above[0]]) if above.size else None
+
+
+def outcome_stderr_series(
+    curves: dict[str, Any], team: str, x_name: str | None, games: int, run: str = ""
+) -> Series | None:
+    """The standard error of the mean outcome against ``team`` at each evaluation, from its
+    win and draw rates over ``games`` games (outcome 1, 0.5 or 0: variance w + d/4 - mean^2);
+    None if the run did not log them."""
+    names = [f"eval/{team}/{part}" for part in ("outcome", "win", "draw")]
+    if any(name not in curves for name in names) or games < 1:
+        return None
+    mean, win, draw = (run_series(curves, name, x_name, run) for name in names)
+    if not (mean.x.shape == win.x.shape == draw.x.shape):
+        return None
+    variance = np.clip(win.y + draw.y / 4.0 - mean.y**2, 0.0, None)
+    return Series(run=run, x=mean.x, y=np.sqrt(variance / games))
+
+
+def _eval_games(run_dir: Path) -> int:
+    """``run.eval_games`` of a run directory's config.json (0 when it cannot be read)."""
+    import json
+
+    try:
+        config = json.loads((run_dir / "config.json").read_text(encoding="utf-8"))
+        return int(config["run"]["eval_games"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return 0
 
 
 def _teams_of(curves_per_run: Sequence[dict[str, Any]], template: str) -> list[str]:
@@ -146,6 +178,7 @@ class CurvesSummary:
     against: str
     first_outperformed: dict[str, dict[str, float | None]]  # x alias -> team -> x (or None)
     final_mean: float  # mean over runs of the last logged value against ``against``
+    with_interval: frozenset[str] = frozenset()  # teams whose crossing used the interval
 
 
 def plot_learning_curves(
@@ -157,12 +190,19 @@ def plot_learning_curves(
     metric: str = DEFAULT_METRIC,
     threshold: float = OUTPERFORM_THRESHOLD,
     title: str | None = None,
+    confidence: float = 0.95,
 ) -> CurvesSummary:
     """Figure 6.4 from runs' ``metrics.csv``: one panel per x axis, PNG at ``out``.
 
     metric: a name template with ``{team}`` (default ``eval/{team}/outcome``), or a plain
     metric name (then only ``against`` labels it and no vertical lines are drawn).
+    A team counts as beaten ("first beats") where the lower end of the ``confidence``
+    interval of the mean outcome is above ``threshold``: the standard error comes from the
+    logged win and draw rates over each run's ``run.eval_games`` games, pooled over the runs.
+    Runs that logged no win and draw rates fall back to the mean itself (said in the legend).
     """
+    import statistics
+
     import matplotlib
 
     matplotlib.use("Agg")
@@ -174,6 +214,8 @@ def plot_learning_curves(
         raise ValueError("no run directory given")
     names = []
     curves_per_run = []
+    eval_games = [_eval_games(Path(run_dir)) for run_dir in run_dirs]
+    z = statistics.NormalDist().inv_cdf(0.5 + confidence / 2.0)
     for run_dir in run_dirs:
         path = Path(run_dir)
         csv_path = path if path.is_file() else path / "metrics.csv"
@@ -189,6 +231,7 @@ def plot_learning_curves(
         1, len(x_axes), figsize=(5.6 * len(x_axes), 4.4), sharey=True, squeeze=False
     )
     firsts: dict[str, dict[str, float | None]] = {}
+    interval_teams: set[str] = set()
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     final_mean = math.nan
     for axis, alias in zip(axes[0], x_axes, strict=True):
@@ -214,12 +257,26 @@ def plot_learning_curves(
                 run_series(curves, metric.format(team=team), x_name, run)
                 for curves, run in zip(curves_per_run, names, strict=True)
             ])
-            crossing = first_above(team_band, threshold)
+            errors = [
+                outcome_stderr_series(curves, team, x_name, games, run)
+                for curves, run, games in zip(curves_per_run, names, eval_games, strict=True)
+            ]
+            stderr = None
+            if metric == DEFAULT_METRIC and all(error is not None for error in errors):
+                # The mean over R runs: its variance is the mean of the runs' variances / R.
+                variances = [dataclasses.replace(e, y=e.y**2) for e in errors if e is not None]
+                pooled = band(variances, points=team_band.x.size)
+                stderr = np.sqrt(np.interp(team_band.x, pooled.x, pooled.mean) / len(errors))
+            if stderr is not None:
+                interval_teams.add(team)
+            crossing = first_above(team_band, threshold, stderr, z)
             firsts[alias][team] = crossing
             if crossing is not None:
                 where = f"{crossing / divisor:.3g} {unit}".rstrip()
+                how = "" if stderr is not None else " (mean, no interval)"
                 axis.axvline(crossing / divisor, color=colours[(index + 1) % len(colours)],
-                             linestyle="--", linewidth=1.2, label=f"first beats {team} at {where}")
+                             linestyle="--", linewidth=1.2,
+                             label=f"first beats {team} at {where}{how}")
         axis.set_xlabel(label)
         axis.set_ylim(-0.02, 1.02)
         axis.grid(alpha=0.3)
@@ -237,7 +294,7 @@ def plot_learning_curves(
     plt.close(figure)
     return CurvesSummary(
         path=out, runs=tuple(names), against=against, first_outperformed=firsts,
-        final_mean=final_mean,
+        final_mean=final_mean, with_interval=frozenset(interval_teams),
     )
 
 

@@ -152,3 +152,22 @@ def test_page_plays_a_replay_and_selects_a_player(replays) -> None:
         finally:
             browser.close()
     assert errors == []
+
+
+def test_a_folder_lists_every_replay_under_it(replays, tmp_path) -> None:
+    from elevens.eval.replay import ReplayError, save_replay
+    from elevens.eval.viewer import replay_files
+
+    save_replay(replays[0], tmp_path / "replays" / "naive" / "game_0000.npz")
+    save_replay(replays[1], tmp_path / "replays" / "teamwork" / "game_0001.npz")
+    np.savez(tmp_path / "networks.npz", w=np.zeros(3))  # an .npz that is not a replay
+    single = tmp_path / "single.npz"
+    save_replay(replays[0], single)
+    found = replay_files([tmp_path / "replays", single])
+    assert [p.relative_to(tmp_path).as_posix() for p in found] == [
+        "replays/naive/game_0000.npz", "replays/teamwork/game_0001.npz", "single.npz"
+    ]
+    assert len(replay_files([tmp_path])) == 3  # networks.npz is left out
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(ReplayError, match="no replay .* under this folder"):
+        replay_files([tmp_path / "empty"])

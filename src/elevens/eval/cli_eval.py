@@ -126,7 +126,8 @@ class ViewArgs:
     replays: tyro.conf.Positional[
         Annotated[tuple[Path, ...], tyro.conf.arg(metavar="REPLAY...")]
     ] = ()
-    """Replay files (.npz)."""
+    """Replay files (.npz), or folders (a run, an analyze --out folder): every replay under
+    them is listed."""
     port: int = 0
     """Port on 127.0.0.1 (0: any free port; the URL is printed)."""
     open: bool = False

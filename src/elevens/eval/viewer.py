@@ -25,7 +25,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from elevens.eval.replay import Replay, load_replay, replay_to_json
+from elevens.eval.replay import Replay, ReplayError, load_replay, replay_to_json
 
 HOST = "127.0.0.1"
 STATIC_FILES = {
@@ -201,11 +201,57 @@ class ReplayServer:
         self.stop()
 
 
+def replay_files(paths: Sequence[str | Path]) -> list[Path]:
+    """The replay files ``paths`` name: files as they are, and for a folder (a run, an
+    ``analyze --out`` folder) every ``*.npz`` under it that is a replay, sorted. A folder with
+    none is a ``ReplayError``."""
+    from elevens.eval.replay import SUFFIX
+
+    files: list[Path] = []
+    for path in map(Path, paths):
+        if not path.is_dir():
+            files.append(path)
+            continue
+        found = sorted(
+            candidate for candidate in path.rglob(f"*{SUFFIX}")
+            if candidate.is_file() and _is_replay(candidate)
+        )
+        if not found:
+            raise ReplayError(
+                f"{path}: no replay (.npz) under this folder; write some with elevens analyze "
+                "--replays N or elevens play --replay FILE"
+            )
+        files.extend(found)
+    if not files:
+        raise ReplayError("no replay given: elevens view REPLAY.npz ... or a folder of them")
+    return files
+
+
+def _is_replay(path: Path) -> bool:
+    """An .npz with a header array (a shipped team's networks.npz is not a replay)."""
+    import zipfile
+
+    try:
+        with zipfile.ZipFile(path) as archive:
+            return "header.npy" in archive.namelist()
+    except (OSError, zipfile.BadZipFile):
+        return True  # let load_replay name the problem
+
+
+def _short_name(path: Path, given: Sequence[str | Path]) -> str:
+    """The name shown for a replay: relative to the folder it was found under."""
+    for root in map(Path, given):
+        if root.is_dir() and path.is_relative_to(root):
+            return str(path.relative_to(root))
+    return path.name
+
+
 def view(paths: Sequence[str | Path], port: int = 0, open_browser: bool = False) -> None:
     """`elevens view`: load the replays (a clear ``ReplayError`` if one is bad), print the URL
     and serve until Ctrl-C."""
-    replays = [load_replay(path) for path in paths]
-    server = ReplayServer(replays, [Path(path).name for path in paths], port=port)
+    files = replay_files(paths)
+    replays = [load_replay(path) for path in files]
+    server = ReplayServer(replays, [_short_name(path, paths) for path in files], port=port)
     print(f"elevens viewer: {server.url}  ({len(replays)} replay(s); Ctrl-C stops)", flush=True)
     if open_browser:
         import webbrowser

@@ -526,13 +526,20 @@ def test_a_mixed_run_trains_one_state_at_two_sizes_and_resumes_bit_for_bit(
     assert leaves_equal(resumed.state, straight.state)
 
 
-def test_train_writes_logs_plot_gif_and_checkpoint(tmp_path: Path) -> None:
+def test_train_writes_logs_plot_gif_and_checkpoint(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     config = tiny_config(
         tmp_path,
         **{"run.iterations": 2, "run.eval_every": 2, "run.write_plot": True,
            "run.write_gif": True},
     )
     result = train(config, progress=False)
+    printed = capsys.readouterr().out
+    # The user hears what the silent first minutes are for.
+    assert "evaluating the untrained networks against random" in printed
+    assert "compiling the 1v1 training chunk (2 iterations)" in printed
+    assert "compiled and ran the first 1v1 chunk in" in printed
     for name in ("metrics_csv", "learning_curve", "gif", "config"):
         assert result.files[name].is_file(), name
     assert result.files["learning_curve"].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -548,6 +555,11 @@ def test_train_writes_logs_plot_gif_and_checkpoint(tmp_path: Path) -> None:
     # again at the end.
     np.testing.assert_array_equal(curves["eval/random/outcome"].steps, [0, 2])
     assert set(result.evaluation) >= {"eval/random/outcome", "eval/random/win"}
+    # One row per step and metric: the evaluation after a chunk does not log the time again.
+    rows = [tuple(line.split(",")[:2]) for line in
+            (tmp_path / "metrics.csv").read_text().splitlines()[1:]]
+    assert len(rows) == len(set(rows))
+    np.testing.assert_array_equal(curves["time/hours"].steps, [0, 1, 2])
 
 
 # --------------------------------------------------------------------------------------------

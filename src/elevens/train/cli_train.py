@@ -104,7 +104,7 @@ def train_command(args: TrainArgs) -> Any:
         state = "done"
     print(
         f"{state}: {result.iteration} iterations, {result.env_steps:,} env steps in "
-        f"{result.wall_s / 60:.1f} min"
+        f"{result.train_seconds / 60:.1f} min of training (time/hours)"
     )
     outcomes = {k: v for k, v in result.evaluation.items() if k.endswith("/outcome")}
     for name, value in outcomes.items():

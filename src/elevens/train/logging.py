@@ -344,6 +344,14 @@ class TrainProgress:
         if due or int(iteration) >= self.total:
             print(self.last_line, file=self.console.file, flush=True)
 
+    def note(self, message: str) -> None:
+        """A line of its own above the bar (or between plain lines): what the run is doing
+        while the bar cannot move, such as compiling."""
+        if self._progress is not None:
+            self._progress.console.print(message, markup=False, highlight=False)
+        else:
+            print(message, file=self.console.file, flush=True)
+
     def close(self) -> None:
         """Stops the bar (leaving its last state on screen); calling it again does nothing."""
         if self._closed:

@@ -644,6 +644,9 @@ class TrainResult:
     """What the run wrote: ``metrics_csv``, ``learning_curve``, ``gif``, ``config``."""
     wall_s: float
     """Seconds this call took."""
+    train_seconds: float = 0.0
+    """Training time of the whole run (``time/hours`` * 3600): compiling, chunks and
+    evaluations, summed over resumed sessions; what ``run.max_minutes`` limits."""
 
 
 ChunkHook = Callable[[TrainState, Mapping[str, float]], None]
@@ -828,7 +831,9 @@ def train(
         it = int(current.iteration)
         results = evaluate(trainer, current, jax.random.fold_in(eval_key, it))
         train_seconds += time.perf_counter() - began
-        logger.log(it, {**results, **_time_metrics(env_steps, train_seconds)})
+        # The chunk before logged the time at this step; only the untrained baseline has none.
+        time_rows = _time_metrics(env_steps, train_seconds) if it == 0 else {}
+        logger.log(it, {**results, **time_rows})
         return results
 
     logger = RunLogger(run_dir, resumed_at=iteration if resuming else None)
@@ -846,8 +851,13 @@ def train(
         try:
             if iteration == 0 and run.eval_every > 0:
                 # The untrained baseline: the learning curve starts at iteration 0.
+                bar.note(
+                    f"evaluating the untrained networks against {', '.join(run.eval_teams)} "
+                    f"({run.eval_games} games each; the first match compiles)"
+                )
                 evaluation = run_eval(state)
                 evaluated_at = 0
+            compiled: set[str] = set()
             while iteration < run.iterations:
                 if train_seconds >= budget_s:
                     out_of_time = True
@@ -861,12 +871,21 @@ def train(
                 game = schedule[iteration // run.iterations_per_chunk]
                 game_trainer = trainers[game]
                 steps_per_iteration = game_configs[game].env_steps_per_iteration
+                if game not in compiled:
+                    bar.note(
+                        f"compiling the {game} training chunk ({count} iteration"
+                        f"{'s' if count > 1 else ''}): once per run and size, from about 20 s "
+                        "for 1 v 1 to one or two minutes for 11 v 11 on a 2-core CPU"
+                    )
                 began = time.perf_counter()
                 new_state, metrics = game_trainer.update(
                     _with_games(state, game_configs[game]), count
                 )
                 rows = _host_metrics(metrics)  # blocks until the chunk is done
                 chunk_seconds = time.perf_counter() - began
+                if game not in compiled:
+                    compiled.add(game)
+                    bar.note(f"compiled and ran the first {game} chunk in {chunk_seconds:.0f} s")
                 state = _with_games(new_state, game_configs[config.env.scenario])
                 before, iteration = iteration, int(state.iteration)
                 chunk_sps = count * steps_per_iteration / max(chunk_seconds, 1e-9)
@@ -927,6 +946,7 @@ def train(
         evaluation=evaluation,
         files=files,
         wall_s=time.perf_counter() - start_time,
+        train_seconds=train_seconds,
     )
 
 

@@ -43,6 +43,10 @@ HIGHLIGHT_COLOUR: RGB = (255, 235, 60)
 FOV_COLOUR: RGB = (255, 255, 210)
 FOV_ALPHA = 0.22
 DIM_TOWARDS_GRASS = 0.55  # unseen entities in the observation view fade this far into the grass
+DIM_TOWARDS = (232, 232, 232)  # unseen players pale towards white: blue stays blue, red red
+NUMBER_COLOUR: RGB = (255, 255, 255)
+NUMBER_OUTLINE: RGB = (10, 10, 10)
+NUMBER_MIN_PX = 9  # the smallest legible digit height in the final image
 
 # --- geometry (metres unless named _px) ---------------------------------------------------------
 SUPERSAMPLE = 2
@@ -258,16 +262,28 @@ def _players_and_ball(canvas: _Canvas, state: State, params: EnvParams,
         left = np.array([-forward[1], forward[0]])
         fade = DIM_TOWARDS_GRASS if faded[row] else 0.0
         canvas.segment(centre - reach * left, centre + reach * left,
-                       _mix(LEG_COLOURS[team], grass, fade), LEG_WIDTH, round_ends=True)
-        canvas.disc(centre, radius, _mix(TEAM_COLOURS[team], grass, fade),
+                       _mix(LEG_COLOURS[team], DIM_TOWARDS, fade), LEG_WIDTH, round_ends=True)
+        canvas.disc(centre, radius, _mix(TEAM_COLOURS[team], DIM_TOWARDS, fade),
                     _mix(OUTLINE_COLOUR, grass, fade))
         canvas.segment(centre, centre + HEADING_TICK * radius * forward,
                        _mix(HEADING_COLOUR, grass, fade), 0.35)
+    for row in range(2 * n):
+        # Shirt numbers 1..n per team, above and to the right, readable in a clump.
+        _number(canvas, positions[row], radius, str(row % n + 1), TEAM_COLOURS[row // n])
     for row in highlight:
         canvas.disc(positions[row], radius + 0.9, None, HIGHLIGHT_COLOUR, 0.3)
     fade = DIM_TOWARDS_GRASS if faded[2 * n] else 0.0
     canvas.disc(np.asarray(state.ball_position, np.float64), float(params.ball_radius),
                 _mix(BALL_COLOUR, grass, fade), _mix(OUTLINE_COLOUR, grass, fade))
+
+
+def _number(canvas: _Canvas, centre: np.ndarray, radius: float, text: str, team: RGB) -> None:
+    size = max(NUMBER_MIN_PX, round(1.7 * canvas.layout.scale)) * SUPERSAMPLE
+    x, y = canvas.px(float(centre[0]) + 0.7 * radius, float(centre[1]) + 0.7 * radius)
+    canvas.draw.text(
+        (x, y), text, fill=NUMBER_COLOUR, font=_font(size), anchor="lb",
+        stroke_width=max(1, size // 7), stroke_fill=_mix(team, NUMBER_OUTLINE, 0.6),
+    )
 
 
 def _new_canvas(params: EnvParams, scale: float) -> _Canvas:

@@ -234,6 +234,22 @@
       line([x, y], [x + 1.9 * field.radius * fx, y + 1.9 * field.radius * fy]);
       ctx.lineCap = "butt";
     }
+    // Shirt numbers 1..n per team, above and to the right of each player, on top of all bodies.
+    const size = Math.max(10, Math.round(1.7 * scale));
+    ctx.font = `bold ${size}px sans-serif`;
+    ctx.textAlign = "left";
+    ctx.textBaseline = "bottom";
+    ctx.lineJoin = "round";
+    for (let row = 0; row < positions.length; row++) {
+      const [x, y] = positions[row];
+      const [cx, cy] = toCanvas(x + 0.7 * field.radius, y + 0.7 * field.radius);
+      ctx.globalAlpha = dim && row !== state.selected && !seen.has(row) ? 0.4 : 1;
+      ctx.lineWidth = Math.max(2, size / 5);
+      ctx.strokeStyle = LEG_COLOURS[Math.floor(row / n)];
+      ctx.strokeText(String((row % n) + 1), cx, cy);
+      ctx.fillStyle = "rgb(255, 255, 255)";
+      ctx.fillText(String((row % n) + 1), cx, cy);
+    }
     ctx.globalAlpha = 1;
     if (state.selected !== null) {
       const [x, y] = positions[state.selected];

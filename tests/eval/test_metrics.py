@@ -180,6 +180,30 @@ def test_heatmap_png(tmp_path) -> None:
     assert width > 600 and height > 300
 
 
+def test_teams_of_one_analysis_share_a_colour_scale_with_whole_team_and_ball_panels(
+    tmp_path,
+) -> None:
+    from elevens.eval.heatmap import colour_top, position_histograms
+
+    _, params = elevens.make("2v2")
+    rng = np.random.default_rng(1)
+    spread = rng.normal(scale=20, size=(4, 50, 2, 2))
+    tight = rng.normal(scale=2, size=(4, 50, 2, 2))
+    histograms = [position_histograms(p, params)[0] for p in (spread, tight)]
+    top = colour_top(histograms)
+    # The shared top lies between the two teams' own tops: one scale, not two.
+    assert colour_top(histograms[:1]) < top <= colour_top(histograms[1:])
+    ball = rng.normal(scale=10, size=(4, 50, 2))
+    with_ball = plot_heatmaps(spread, params, tmp_path / "a.png", title="t", ball=ball, top=top,
+                              shared_with=2)
+    without = plot_heatmaps(spread, params, tmp_path / "b.png", title="t", top=top)
+    from PIL import Image
+
+    # 2 slots + whole team + ball fill one row of 4 panels; without the ball, 3.
+    with Image.open(with_ball) as a, Image.open(without) as b:
+        assert a.size[0] > b.size[0]
+
+
 def test_analyze_command_writes_metrics_heatmaps_and_replays(tmp_path, capsys) -> None:
     import json
 
@@ -187,14 +211,17 @@ def test_analyze_command_writes_metrics_heatmaps_and_replays(tmp_path, capsys) -
     from elevens.eval.replay import load_replay
 
     out = tmp_path / "analysis"
-    rows = eval_main(["analyze", "random", "--against", "naive", "--players", "2", "--steps",
-                      "40", "--games", "6", "--replays", "2", "--out", str(out)])
-    assert [(row.team, row.opponent, row.games) for row in rows] == [("random", "naive", 6)]
+    rows = eval_main(["analyze", "random", "teamwork", "--against", "naive", "--players", "2",
+                      "--steps", "40", "--games", "6", "--replays", "2", "--out", str(out)])
+    assert [(row.team, row.opponent, row.games) for row in rows] == [
+        ("random", "naive", 6), ("teamwork", "naive", 6)
+    ]
     assert "Gameplay metrics against naive" in capsys.readouterr().out
     saved = json.loads((out / "metrics.json").read_text())
     assert saved["teams"][0]["metrics"]["move"]["mean"] == pytest.approx(
         rows[0].stats["move"].mean)
-    assert (out / "heatmap_random.png").read_bytes()[:4] == b"\x89PNG"
+    for team in ("random", "teamwork"):  # named by the opponent too
+        assert (out / f"heatmap_{team}_vs_naive.png").read_bytes()[:4] == b"\x89PNG"
     replay = load_replay(out / "replays" / "random" / "game_0001.npz")
     assert replay.team_names == ("random", "naive") and replay.num_steps == 40
     assert not (out / "replays" / "random" / "game_0002.npz").exists()

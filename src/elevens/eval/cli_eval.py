@@ -66,7 +66,7 @@ class AnalyzeArgs:
     players: int = 11
     """Players per team, 1..11."""
     out: Path = Path("analysis")
-    """Directory for metrics.csv, metrics.json and heatmap_<team>.png."""
+    """Directory for metrics.csv, metrics.json and heatmap_<team>_vs_<opponent>.png."""
     seed: int = 0
     """Seed of the games."""
     steps: int | None = None
@@ -222,7 +222,7 @@ def analyze_command(args: AnalyzeArgs) -> Any:
     import jax
     from rich.console import Console
 
-    from elevens.eval.heatmap import plot_heatmaps
+    from elevens.eval.heatmap import colour_top, plot_heatmaps, position_histograms
     from elevens.eval.match import play_match
     from elevens.eval.metrics import (
         compute_metrics,
@@ -242,6 +242,7 @@ def analyze_command(args: AnalyzeArgs) -> Any:
     )
     out = Path(args.out)
     rows = []
+    trajectories = []
     for index, team in enumerate(teams):
         began = time.perf_counter()
         result = play_match(
@@ -254,12 +255,8 @@ def analyze_command(args: AnalyzeArgs) -> Any:
                                     opponent_name=opponent.name))
         message = f"{team.name} v {opponent.name}: {args.games} games"
         if args.heatmaps:
-            path = plot_heatmaps(
-                team_trajectories(result).positions, params, out / f"heatmap_{team.name}.png",
-                title=f"Positions of {team.name} against {opponent.name} "
-                f"({args.players} v {args.players}, {args.games} games, own frame)",
-            )
-            message += f", heat map {path}"
+            own = team_trajectories(result)
+            trajectories.append((team.name, own.positions, own.ball))
         if args.replays > 0:
             saved = save_match_replays(
                 result, params, out / "replays" / team.name, team.name, opponent.name,
@@ -267,6 +264,17 @@ def analyze_command(args: AnalyzeArgs) -> Any:
             )
             message += f", {len(saved)} replays in {saved[0].parent}"
         console.print(f"{message} ({time.perf_counter() - began:.1f} s)", markup=False)
+    if trajectories:
+        # One colour scale for every team of the analysis, so their maps compare.
+        top = colour_top([position_histograms(p, params)[0] for _, p, _ in trajectories])
+        for name, positions, ball in trajectories:
+            path = plot_heatmaps(
+                positions, params, out / f"heatmap_{name}_vs_{opponent.name}.png",
+                title=f"Positions of {name} against {opponent.name} "
+                f"({args.players} v {args.players}, {args.games} games, own frame)",
+                ball=ball, top=top, shared_with=len(trajectories),
+            )
+            console.print(f"heat map: {path}", markup=False)
     print_metrics(rows, console)
     paths = save_metrics(rows, out / "metrics")
     for kind, path in paths.items():

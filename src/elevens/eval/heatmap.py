@@ -4,7 +4,9 @@ One small panel per formation slot: a 2D histogram of that player's centre over 
 every game, in the team's own frame (so every team defends the left goal and attacks +x, whatever
 side it played), normalised to the probability of finding the player in each cell. The slot's
 formation point is marked with a black ring. Colours follow the thesis: dark green is likely,
-light yellow unlikely; cells it never visited are left blank.
+light yellow unlikely; cells it never visited are left blank. Two more panels pool the whole
+team (every player's steps) and show the ball. ``elevens analyze`` draws every team of one
+analysis on one colour scale (``colour_top``), so their figures compare.
 """
 
 from __future__ import annotations
@@ -55,6 +57,18 @@ def position_histograms(
     return histograms, x_edges, y_edges
 
 
+CLIP_PERCENTILE = 99.0
+"""The colour scale tops out at this percentile of the visited cells (said on the colour bar):
+a keeper's few cells would otherwise wash out every other panel."""
+
+
+def colour_top(histograms: list[np.ndarray]) -> float:
+    """The top of one colour scale for several teams' per-slot histograms: the
+    ``CLIP_PERCENTILE`` of all their visited cells together."""
+    visited = np.concatenate([np.ravel(h[h > 0]) for h in histograms] or [np.zeros(0)])
+    return float(np.percentile(visited, CLIP_PERCENTILE)) if visited.size else 1.0
+
+
 def _draw_field(axis: Any, params: EnvParams) -> None:
     from matplotlib.patches import Circle
 
@@ -76,10 +90,16 @@ def plot_heatmaps(
     *,
     title: str,
     cell: float = CELL_METRES,
+    ball: np.ndarray | None = None,
+    top: float | None = None,
+    shared_with: int = 1,
 ) -> Path:
-    """Write the per-slot heat maps of one team as a PNG.
+    """Write the per-slot heat maps of one team as a PNG, then its whole team and the ball.
 
     positions: f[G, T, n, 2], the team's players in its own frame (``TeamTrajectories``).
+    ball: f[G, T, 2] in the same frame (``TeamTrajectories.ball``); None leaves its panel out.
+    top: the colour scale's top (``colour_top`` over the teams to compare; default this team's
+    own); ``shared_with`` says on the figure how many teams share it.
     """
     import matplotlib
 
@@ -89,10 +109,19 @@ def plot_heatmaps(
 
     histograms, x_edges, y_edges = position_histograms(positions, params, cell)
     n = histograms.shape[0]
+    points = np.asarray(positions, np.float64)
+    pooled, _, _ = position_histograms(
+        points.reshape(points.shape[0], -1, 1, 2), params, cell
+    )
+    extra = [("whole team", pooled[0] / 1.0)]
+    if ball is not None:
+        ball_points = np.asarray(ball, np.float64)[:, :, None, :]
+        extra.append(("ball", position_histograms(ball_points, params, cell)[0][0]))
     spawns = spawn_points(params)
     roles = slot_roles(n)
-    columns = min(n, 4)
-    rows = -(-n // columns)
+    panels = n + len(extra)
+    columns = min(panels, 4)
+    rows = -(-panels // columns)
     hl, hw = float(params.half_length), float(params.half_width)
     panel_width = 3.3
     panel_height = panel_width * hw / hl + 0.3
@@ -100,37 +129,45 @@ def plot_heatmaps(
         rows, columns, figsize=(panel_width * columns + 1.3, panel_height * rows + 0.7),
         squeeze=False, sharex=True, sharey=True, layout="constrained",
     )
-    visited = histograms[histograms > 0]
-    # One colour scale for all panels, so panels compare; the top is the 99th percentile of the
-    # visited cells so a keeper's few cells do not wash out every other panel. The square-root
-    # norm shows the tails of a distribution, where positional play shows.
-    top = float(np.percentile(visited, 99)) if visited.size else 1.0
+    # One colour scale for all panels (and, from elevens analyze, all teams), so they compare.
+    # The square-root norm shows the tails of a distribution, where positional play shows.
+    if top is None:
+        top = colour_top([histograms])
     norm = PowerNorm(gamma=0.5, vmin=0.0, vmax=max(top, 1e-12))
     image = None
     for k in range(rows * columns):
         axis = axes[k // columns][k % columns]
-        if k >= n:
+        if k >= panels:
             axis.set_visible(False)
             continue
-        masked = np.ma.masked_equal(histograms[k].T, 0.0)
+        values = histograms[k] if k < n else extra[k - n][1]
+        masked = np.ma.masked_equal(values.T, 0.0)
         image = axis.pcolormesh(x_edges, y_edges, masked, cmap="YlGn", norm=norm,
                                 shading="flat", rasterized=True)
         _draw_field(axis, params)
-        axis.plot(*spawns[k], marker="o", markersize=9, markerfacecolor="none",
-                  markeredgecolor="black", markeredgewidth=1.8)
-        axis.set_title(f"slot {k}: {roles[k]}", fontsize=9)
+        if k < n:
+            axis.plot(*spawns[k], marker="o", markersize=9, markerfacecolor="none",
+                      markeredgecolor="black", markeredgewidth=1.8)
+            axis.set_title(f"slot {k}: {roles[k]}", fontsize=9)
+        else:
+            axis.set_title(extra[k - n][0], fontsize=9)
         axis.set_aspect("equal")
         axis.set_xlim(-hl - 2, hl + 2)
         axis.set_ylim(-hw - 2, hw + 2)
         axis.tick_params(labelsize=7)
-        if k // columns == rows - 1 or k + columns >= n:
+        if k // columns == rows - 1 or k + columns >= panels:
             axis.set_xlabel("x (m), attacking →", fontsize=8)
             axis.xaxis.set_tick_params(labelbottom=True)
         if k % columns == 0:
             axis.set_ylabel("y (m)", fontsize=8)
     if image is not None:
         bar = figure.colorbar(image, ax=axes.ravel().tolist(), shrink=0.8, aspect=30)
-        bar.set_label(f"probability per {cell:g} × {cell:g} m cell", fontsize=8)
+        shared = f"; one scale for the {shared_with} teams of this analysis" if (
+            shared_with > 1) else ""
+        bar.set_label(
+            f"probability per {cell:g} × {cell:g} m cell (cells above {top:.2g}, the "
+            f"{CLIP_PERCENTILE:g}th percentile, at the top colour{shared})", fontsize=8,
+        )
         bar.ax.tick_params(labelsize=7)
     figure.suptitle(f"{title}\n(○ formation spawn point; own goal blue, left)", fontsize=10)
     path = Path(path)

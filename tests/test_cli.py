@@ -48,9 +48,10 @@ def test_play_bad_input_is_one_line_and_exit_2(argv, message, tmp_path, monkeypa
     assert list(tmp_path.iterdir()) == []  # nothing written
 
 
-def test_bench_env_json_lines(capsys):
+def test_bench_env_json_lines(capsys, tmp_path):
     main(["bench", "env", "--players", "1", "--batch", "4", "8", "--steps", "5", "--repeats", "1",
-          "--loop-steps", "5", "--json"])
+          "--loop-steps", "5", "--json", "--plot", str(tmp_path / "fig_6_1.png")])
+    assert (tmp_path / "fig_6_1.png").read_bytes()[:4] == b"\x89PNG"
     lines = [json.loads(line) for line in capsys.readouterr().out.strip().splitlines()]
     assert [(r["players"], r["mode"], r["batch"]) for r in lines] == [
         (1, "loop", 1), (1, "scan", 4), (1, "scan", 8)

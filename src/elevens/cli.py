@@ -96,6 +96,9 @@ class EnvBenchArgs:
     """Print one JSON object per configuration instead of a table."""
     host_devices: int = 1
     """On CPU, split the host into this many XLA devices and shard the batch over them."""
+    plot: Path | None = None
+    """Also draw the results against players per team, with the thesis' figure 6.1 as
+    reference lines (a PNG)."""
 
 
 def _set_host_devices(count: int) -> None:
@@ -131,10 +134,14 @@ def bench_env(args: EnvBenchArgs) -> None:
     _set_host_devices(args.host_devices)
     from elevens.bench.env import run_env_bench
 
-    run_env_bench(
+    results = run_env_bench(
         players=args.players, batch=args.batch, steps=args.steps, repeats=args.repeats,
         loop_steps=args.loop_steps, as_json=args.json,
     )
+    if args.plot is not None:
+        from elevens.bench.env import plot_env_bench
+
+        print(f"wrote {plot_env_bench(results, args.plot)}", file=sys.stderr)
 
 
 Command = (

@@ -14,6 +14,7 @@ import statistics
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, replace
+from pathlib import Path
 from typing import Any
 
 import jax
@@ -183,3 +184,51 @@ def run_env_bench(
                     f"{scan.ratio_to_loop:,.0f}x the Python loop"
                 )
     return results
+
+
+THESIS_FIGURE_6_1: dict[str, dict[int, float]] = {
+    # Env steps per second with random actions, thesis section 6.2.1 (figure 6.1): its custom
+    # environment 4670 (1 a side) and 1533 (11 a side); RoboCup 7.6x and 25x slower, DeepMind's
+    # soccer 13.6x and 102x slower than that.
+    "thesis custom env": {1: 4670.0, 11: 1533.0},
+    "thesis RoboCup wrapper": {1: 4670.0 / 7.6, 11: 1533.0 / 25.0},
+    "thesis DeepMind soccer": {1: 4670.0 / 13.6, 11: 1533.0 / 102.0},
+}
+
+
+def plot_env_bench(results: Sequence[EnvBenchResult], path: str | Path) -> Path:
+    """Figure 6.1: env steps per second against players per team (log scale), one line per
+    batch size and for the single-game Python loop, with the thesis' figures as reference."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    figure, axis = plt.subplots(figsize=(6.4, 4.4), layout="constrained")
+    series: dict[str, list[tuple[int, float]]] = {}
+    for result in results:
+        label = (
+            "elevens, one game (jitted Python loop)" if result.mode == "loop"
+            else f"elevens, {result.batch} games (vmap + scan)"
+        )
+        series.setdefault(label, []).append((result.players, result.steps_per_s))
+    for label, points in series.items():
+        points.sort()
+        axis.plot(*zip(*points, strict=True), marker="o", label=label)
+    for label, reference in THESIS_FIGURE_6_1.items():
+        players = sorted(reference)
+        axis.plot(players, [reference[p] for p in players], linestyle="--", marker="x",
+                  color="grey", alpha=0.8, label=label)
+        axis.annotate(label.removeprefix("thesis "), (players[-1], reference[players[-1]]),
+                      fontsize=7, color="grey", xytext=(4, 0), textcoords="offset points")
+    axis.set_yscale("log")
+    axis.set_xlabel("players per team")
+    axis.set_ylabel("env steps per second (log)")
+    axis.set_title("Environment throughput, random actions (thesis figure 6.1)")
+    axis.grid(alpha=0.3, which="both")
+    axis.legend(fontsize=7)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    figure.savefig(path, dpi=110)
+    plt.close(figure)
+    return path

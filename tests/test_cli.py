@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import imageio.v3 as iio
 import pytest
@@ -62,3 +63,19 @@ def test_bench_env_json_lines(capsys, tmp_path):
     assert lines[1]["ratio_to_loop"] == pytest.approx(
         lines[1]["steps_per_s"] / lines[0]["steps_per_s"]
     )
+
+
+def test_handcrafted_figures_script_writes_its_table_and_figure(tmp_path):
+    import importlib.util
+
+    path = Path(__file__).parent.parent / "scripts" / "handcrafted_figures.py"
+    spec = importlib.util.spec_from_file_location("handcrafted_figures", path)
+    assert spec is not None and spec.loader is not None
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    rows = [{"home": "naive", "away": "random", "sides": "sides swapped", "games": 500,
+             "mean": 0.98, "stderr": 0.006, "win": 0.97, "draw": 0.02, "loss": 0.01,
+             "goals_for": 3.1, "goals_against": 0.1, "bar": ">= 0.95", "met": True}]
+    table, figure = script.write_outputs(rows, tmp_path, "11v11, 500 games a match")
+    assert table.read_text().splitlines()[1].startswith("naive,random,sides swapped,500,0.98")
+    assert figure.read_bytes()[:4] == b"\x89PNG"

@@ -225,3 +225,65 @@ def test_analyze_command_writes_metrics_heatmaps_and_replays(tmp_path, capsys) -
     replay = load_replay(out / "replays" / "random" / "game_0001.npz")
     assert replay.team_names == ("random", "naive") and replay.num_steps == 40
     assert not (out / "replays" / "random" / "game_0002.npz").exists()
+
+
+def _touch_game() -> MatchResult:
+    """Two 2 v 2 games of 10 steps, home on side 0, with touches placed by hand."""
+    g, t, n = 2, 10, 2
+    kicks = np.zeros((g, t, 2 * n), bool)
+    pushes = np.zeros((g, t, 2 * n), bool)
+    ball = np.zeros((g, t, 2), np.float32)
+    velocity = np.zeros((g, t, 2), np.float32)
+    score = np.zeros((g, t, 2), np.int32)
+    # Game 0: home 0 kicks backwards (t 1); home 1 touches it (t 3): a pass. Home 1 kicks at
+    # goal from (40, 0) at 3 m/step (t 4): on target. Away 0 touches (t 6); both teams touch
+    # (t 8): contested.
+    kicks[0, 1, 0] = True
+    velocity[0, 2] = [-2.0, 0.0]
+    pushes[0, 3, 1] = True
+    kicks[0, 4, 1] = True
+    ball[0, 5], velocity[0, 5] = [40.0, 0.0], [3.0, 0.0]
+    pushes[0, 6, 2] = True
+    pushes[0, 8, [0, 3]] = True
+    # Game 1: home 0 kicks wide (t 2: aimed past the post), the ball goes in off a wall: the
+    # home team scores in step 3 (score from t 4), before anyone else touches it.
+    kicks[1, 2, 0] = True
+    ball[1, 3], velocity[1, 3] = [45.0, 0.0], [1.0, 5.0]
+    score[1, 4:, 0] = 1
+    record = MatchRecord(
+        positions=np.zeros((g, t, 2 * n, 2), np.float32),
+        headings=np.zeros((g, t, 2 * n), np.float32), ball_position=ball,
+        ball_velocity=velocity, score=score, actions=np.zeros((g, t, 2, n, 2), np.float32),
+        kicks=kicks, pushes=pushes,
+    )
+    return MatchResult(
+        goals_for=np.array([0, 1]), goals_against=np.array([0, 0]),
+        outcome=np.array([0.5, 1.0]), home_side=np.array([0, 0]), record=record,
+    )
+
+
+def test_possession_passes_shots_and_goals_on_hand_built_games() -> None:
+    _, params = elevens.make("2v2")
+    values = per_step_values(team_trajectories(_touch_game()), params)
+    # Game 0: the home team holds steps 1-5, the away team 6-7: 5 of 7 possessed steps.
+    np.testing.assert_allclose(values["possession"][:, 0], [5 / 7, 1.0])
+    np.testing.assert_array_equal(values["passes"][:, 0], [1, 0])
+    np.testing.assert_array_equal(values["shots_on_target"][:, 0], [1, 1])
+    np.testing.assert_array_equal(values["goals"][:, 0], [0, 1])
+    # The away team's view of game 0: 2 of 7 steps, no pass, no shot.
+    away = per_step_values(team_trajectories(_touch_game(), "away"), params)
+    np.testing.assert_allclose(away["possession"][0, 0], 2 / 7)
+    assert away["passes"][0, 0] == 0 and away["shots_on_target"][0, 0] == 0
+
+
+def test_statistics_of_real_games_add_up() -> None:
+    env, params = elevens.make("2v2", episode_length=60)
+    result = play_match(env, params, NaiveTeam(), RandomTeam(), jax.random.key(3), 8,
+                        record=True)
+    home = per_step_values(team_trajectories(result), params)
+    away = per_step_values(team_trajectories(result, "away"), params)
+    shares = home["possession"][:, 0] + away["possession"][:, 0]
+    np.testing.assert_allclose(shares[np.isfinite(shares)], 1.0)  # the two shares complement
+    np.testing.assert_array_equal(home["goals"][:, 0], np.asarray(result.goals_for))
+    # The naive team chases the ball: it holds it more than the random team does.
+    assert np.nanmean(home["possession"]) > 0.5

@@ -40,6 +40,9 @@ class MatchRecord:
     ball_velocity: jax.Array  # f32[G, T, 2]
     score: jax.Array  # i32[G, T, 2] goals of side 0 and side 1 so far
     actions: jax.Array  # f32[G, T, 2, n, 2] (side, player, (move, rot)) as applied: clipped, NaN 0
+    kicks: jax.Array | None = None  # bool[G, T, 2n] who leg-kicked the ball in step t
+    pushes: jax.Array | None = None  # bool[G, T, 2n] who body-pushed it (None: not recorded,
+    #                                  e.g. a replay)
 
 
 @struct.dataclass
@@ -121,7 +124,7 @@ def _play_game(
         ).astype(jnp.float32)
         # What the env applies (it clips, and NaN counts as 0), so the record holds that.
         actions = jnp.clip(jnp.where(jnp.isnan(actions), 0.0, actions), -1.0, 1.0)
-        state, _, _, _ = env.transition(env_key, carry.state, actions, params)
+        state, _, _, info = env.transition(env_key, carry.state, actions, params)
         history = None
         if record:
             history = MatchRecord(
@@ -131,6 +134,8 @@ def _play_game(
                 ball_velocity=carry.state.ball_velocity,
                 score=carry.state.score,
                 actions=actions,
+                kicks=info.kicks,
+                pushes=info.pushes,
             )
         return _GameCarry(state=state, home_carry=home_carry, away_carry=away_carry), history
 

@@ -14,7 +14,25 @@ team_distance      distance between each pair of teammates (n(n-1)/2 pairs)     
 closest_to_ball    the smallest player-ball distance of the team                m        lower
 closest_to_goal    the smallest distance of a player to its own goal's centre   m        lower
 outcome            per game: win 1, draw 0.5, loss 0                            -        higher
+possession         per game: the team's share of the steps either team had the  -        higher
+                   ball (see below)
+passes             per game: the team's kicks whose next touch is a teammate's  count    higher
+shots_on_target    per game: the team's kicks aimed into the goal mouth with    count    higher
+                   the reach to get there, or followed by its goal
+goals              per game: the team's goals (all from open play: the game has count    higher
+                   no set pieces)
 =================  ===========================================================  =======  ======
+
+The last four come from the touches the env reports each step (``StepInfo.kicks`` and
+``pushes``, recorded by ``play_match(record=True)``). A touch is a kick or a push. A step in
+which players of both teams touch the ball is contested: nobody has it after it. Otherwise the
+touching team has the ball from that step until the other team touches it or a goal restarts
+play; if several of its players touch in one step, the toucher is the first kicker among them
+(else the first pusher). A pass is a kick by player A whose next touch (before any goal) is by
+a teammate B != A. A kick is a shot on target when the ball, as it leaves the step, heads for
+the attacked goal line and crosses it inside the mouth within its rolling reach (speed * f /
+(1 - f) with friction f, SPEC.md), or when the team scores before the next touch. Matches
+recorded without touches (replays) give NaN for these four.
 
 (The "better" column is the thesis' reading of table 6.4; rows 3 and 4 are "higher is better"
 because spread-out teams do not bunch up.) The actions are the ones the env applied (clipped).
@@ -56,6 +74,10 @@ METRICS: tuple[MetricInfo, ...] = (
     MetricInfo("closest_to_ball", "Closest to ball", "m", "lower"),
     MetricInfo("closest_to_goal", "Closest to goal", "m", "lower"),
     MetricInfo("outcome", "Average outcome", "win 1, draw 0.5, loss 0", "higher"),
+    MetricInfo("possession", "Possession", "share of possessed steps", "higher"),
+    MetricInfo("passes", "Passes", "per game", "higher"),
+    MetricInfo("shots_on_target", "Shots on target", "per game", "higher"),
+    MetricInfo("goals", "Goals", "per game", "higher"),
 )
 METRIC_NAMES: tuple[str, ...] = tuple(info.name for info in METRICS)
 
@@ -69,6 +91,13 @@ class TeamTrajectories:
     ball: np.ndarray  # f64[G, T, 2]
     actions: np.ndarray  # f64[G, T, n, 2] (move, rot) as applied
     outcome: np.ndarray  # f64[G] the team's outcome
+    ball_velocity: np.ndarray | None = None  # f64[G, T, 2]
+    goals_for: np.ndarray | None = None  # i64[G, T] the team's goals so far
+    goals_against: np.ndarray | None = None  # i64[G, T]
+    kicks: np.ndarray | None = None  # bool[G, T, n] the team's kicks in step t
+    pushes: np.ndarray | None = None  # bool[G, T, n]
+    opponent_touches: np.ndarray | None = None  # bool[G, T, n] the other team's kicks or pushes
+    final_goals_for: np.ndarray | None = None  # i64[G] the team's goals at the final whistle
 
 
 @dataclasses.dataclass(frozen=True)
@@ -133,8 +162,29 @@ def team_trajectories(result: MatchResult, which: str = "home") -> TeamTrajector
     outcome = np.asarray(result.outcome, np.float64)
     if which == "away":
         outcome = 1.0 - outcome
+    score = np.asarray(record.score, np.int64)  # [G, T, 2] by side
+    goals_for = np.take_along_axis(score, side[:, None, None], axis=2)[..., 0]
+    goals_against = np.take_along_axis(score, 1 - side[:, None, None], axis=2)[..., 0]
+    extra: dict[str, np.ndarray] = {}
+    if record.kicks is not None and record.pushes is not None:
+        kicks, pushes = np.asarray(record.kicks, bool), np.asarray(record.pushes, bool)
+
+        def players_of(flags: np.ndarray, team_side: np.ndarray) -> np.ndarray:
+            index = team_side[:, None] * n + np.arange(n)[None, :]  # [G, n]
+            return np.take_along_axis(flags, index[:, None, :], axis=2)
+
+        extra = {
+            "kicks": players_of(kicks, side),
+            "pushes": players_of(pushes, side),
+            "opponent_touches": players_of(kicks | pushes, 1 - side),
+        }
     return TeamTrajectories(
-        positions=own, opponents=other, ball=ball, actions=own_actions, outcome=outcome
+        positions=own, opponents=other, ball=ball, actions=own_actions, outcome=outcome,
+        ball_velocity=np.asarray(record.ball_velocity, np.float64) * sign[:, :, :, 0],
+        goals_for=goals_for, goals_against=goals_against, **extra,
+        final_goals_for=np.asarray(
+            result.goals_for if which == "home" else result.goals_against, np.int64
+        ),
     )
 
 
@@ -159,7 +209,96 @@ def per_step_values(traj: TeamTrajectories, params: EnvParams) -> dict[str, np.n
         "closest_to_ball": to_ball.min(axis=-1, keepdims=True),
         "closest_to_goal": to_goal.min(axis=-1, keepdims=True),
         "outcome": traj.outcome[:, None],
+        **match_statistics(traj, params),
     }
+
+
+def match_statistics(traj: TeamTrajectories, params: EnvParams) -> dict[str, np.ndarray]:
+    """Possession share, passes, shots on target and goals of the team, ``f64[G, 1]`` each
+    (see the module docstring); NaN where the record has no touches."""
+    games = traj.positions.shape[0]
+    names = ("possession", "passes", "shots_on_target", "goals")
+    if traj.kicks is None or traj.pushes is None or traj.opponent_touches is None:
+        return {name: np.full((games, 1), np.nan) for name in names}
+    assert traj.ball_velocity is not None and traj.goals_for is not None
+    assert traj.goals_against is not None
+    out = {name: np.zeros((games, 1)) for name in names}
+    for game in range(games):
+        stats = _game_statistics(
+            traj.kicks[game], traj.pushes[game], traj.opponent_touches[game],
+            traj.ball[game], traj.ball_velocity[game], traj.goals_for[game],
+            traj.goals_against[game], params,
+        )
+        for name, value in zip(names[:3], stats, strict=True):
+            out[name][game, 0] = value
+    out["goals"][:, 0] = traj.final_goals_for if traj.final_goals_for is not None else np.nan
+    return out
+
+
+def _on_target(position: np.ndarray, velocity: np.ndarray, params: EnvParams) -> bool:
+    """Does a ball at ``position`` moving at ``velocity`` (own frame, after friction) roll over
+    the attacked goal line (x = +L/2) inside the mouth before it stops?"""
+    if velocity[0] <= 0:
+        return False
+    half_length, goal_half = float(params.half_length), float(params.goal_width) / 2
+    friction = float(params.ball_friction)
+    steps_to_line = (half_length - position[0]) / velocity[0]
+    y = position[1] + velocity[1] * steps_to_line
+    reach = float(np.hypot(*velocity)) / (1.0 - friction)
+    travel = float(np.hypot(half_length - position[0], y - position[1]))
+    return abs(y) <= goal_half and travel <= reach
+
+
+def _flags(values: Any) -> list[bool]:
+    return [bool(value) for value in values]
+
+
+def _game_statistics(
+    kicks: np.ndarray, pushes: np.ndarray, opponent_touches: np.ndarray, ball: np.ndarray,
+    ball_velocity: np.ndarray, goals_for: np.ndarray, goals_against: np.ndarray,
+    params: EnvParams,
+) -> tuple[float, int, int]:
+    """One game's (possession share, passes, shots on target); arrays over its T steps."""
+    steps = kicks.shape[0]
+    touches = kicks | pushes
+    # Python lists: the loop reads one flag at a time, which numpy scalars make slow.
+    own_touch, own_kick = _flags(touches.any(axis=1)), _flags(kicks.any(axis=1))
+    other_touch = _flags(opponent_touches.any(axis=1))
+    scored_for = _flags(np.diff(goals_for, prepend=goals_for[:1]))
+    scored_against = _flags(np.diff(goals_against, prepend=goals_against[:1]))
+    holder = 0  # who has the ball: 1 the team, -1 the opponent, 0 nobody
+    held = [0, 0, 0]  # steps held by nobody, the team, the opponent (indexed by holder)
+    last: tuple[int, int, bool] | None = None  # (team 1 / opponent -1, player, kicked)
+    passes = shots = 0
+    pending_shot = False  # a kick off target whose ball may still go in before the next touch
+    for t in range(steps):
+        if scored_for[t] or scored_against[t]:  # a goal in step t - 1: play restarts
+            if pending_shot and scored_for[t]:
+                shots += 1
+            pending_shot, holder, last = False, 0, None
+        if own_touch[t] and other_touch[t]:  # contested
+            holder, last, pending_shot = 0, None, False
+        elif own_touch[t]:
+            kicked = own_kick[t]
+            player = int(np.flatnonzero(kicks[t] if kicked else touches[t])[0])
+            if last is not None and last[0] == 1 and last[2] and last[1] != player:
+                passes += 1
+            pending_shot = False
+            if kicked:
+                next_scores = t + 1 < steps and scored_for[t + 1]
+                if not next_scores and t + 1 < steps and _on_target(
+                    ball[t + 1], ball_velocity[t + 1], params
+                ):
+                    shots += 1
+                else:
+                    pending_shot = True  # credited if the team scores before another touch
+            holder, last = 1, (1, player, kicked)
+        elif other_touch[t]:
+            holder, last, pending_shot = -1, (-1, 0, False), False
+        held[holder] += 1
+    possessed = held[1] + held[-1]
+    share = held[1] / possessed if possessed else float("nan")
+    return float(share), passes, shots
 
 
 def _stat(values: np.ndarray) -> MetricStat:

@@ -224,7 +224,7 @@ def test_tournament_command_prints_and_writes_the_table(tmp_path, capsys) -> Non
     with (out / "pairs.csv").open() as handle:
         pairs = list(csv.DictReader(handle))
     assert len(pairs) == 4
-    for name in ("outcomes.png", "ratings.png"):
+    for name in ("table.png", "outcomes.png", "ratings.png"):
         assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 

@@ -343,6 +343,7 @@ def save_tournament(tournament: Tournament, out_dir: str | Path) -> dict[str, Pa
     paths["json"].write_text(
         json.dumps(tournament_dict(tournament), indent=2) + "\n", encoding="utf-8"
     )
+    paths["table_png"] = plot_table(tournament, out / "table.png")
     paths["outcomes_png"] = plot_outcomes(tournament, out / "outcomes.png")
     paths["ratings_png"] = plot_ratings(tournament, out / "ratings.png")
     return paths
@@ -393,6 +394,39 @@ def plot_outcomes(tournament: Tournament, path: str | Path) -> Path:
         "sides swapped)", x=0.02, ha="left",
     )
     figure.tight_layout(rect=(0, 0, 1, 0.93))
+    path = Path(path)
+    figure.savefig(path, dpi=110)
+    plt.close(figure)
+    return path
+
+
+def plot_table(tournament: Tournament, path: str | Path) -> Path:
+    """Table 6.3 as a figure: the row team's mean outcome against each column team, written in
+    each cell (win 1, draw 0.5, loss 0), green above 0.5 and red below."""
+    plt = _pyplot()
+    table = tournament.table
+    names = list(table.names)
+    n = len(names)
+    games = np.asarray(table.wins) + np.asarray(table.draws) + np.asarray(table.losses)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = (np.asarray(table.wins) + 0.5 * np.asarray(table.draws)) / games
+    figure, axis = plt.subplots(figsize=(1.1 * n + 2.4, 0.8 * n + 1.6), layout="constrained")
+    image = axis.imshow(mean, cmap="RdYlGn", vmin=0.0, vmax=1.0)
+    for i in range(n):
+        for j in range(n):
+            if np.isfinite(mean[i, j]):
+                axis.text(j, i, f"{mean[i, j]:.2f}", ha="center", va="center", fontsize=10,
+                          color="black")
+    axis.set_xticks(range(n), names, rotation=30 if n > 3 else 0, ha="right" if n > 3 else "center")
+    axis.set_yticks(range(n), names)
+    axis.set_xlabel("opponent")
+    axis.set_ylabel("team")
+    bar = figure.colorbar(image, ax=axis, shrink=0.8)
+    bar.set_label("mean outcome of the row team")
+    axis.set_title(
+        f"Mean outcome ({_scenario(tournament)}, {tournament.games_per_pair} games a pair, "
+        "sides swapped)", fontsize=9,
+    )
     path = Path(path)
     figure.savefig(path, dpi=110)
     plt.close(figure)

@@ -16,7 +16,7 @@ def test_play_writes_a_gif_with_one_frame_per_step(tmp_path, capsys):
     main(["play", "--home", "naive", "--away", "random", "--players", "1", "--steps", "12",
           "--out", str(out), "--scale", "3"])
     frames = iio.imread(out, index=None)
-    assert frames.shape[0] == 12
+    assert frames.shape[0] == 12 + 1  # one per step, then the full-time frame
     assert frames.shape[-1] in (3, 4)
 
 

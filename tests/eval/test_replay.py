@@ -68,9 +68,11 @@ def test_round_trip_keeps_every_array_and_draws_the_same_frames(match, tmp_path)
     expected = frames_from_states(states_from_record(result.record, 1, params), params,
                                   team_names=replay.team_names, scale=2)
     drawn = replay_frames(replay, scale=2)
-    assert len(drawn) == len(expected) == 40
-    for got, want in zip(drawn, expected, strict=True):
+    assert len(drawn) == len(expected) + 1 == 41  # and a full-time frame
+    for got, want in zip(drawn, expected, strict=False):
         np.testing.assert_array_equal(got, want)
+    assert not np.array_equal(drawn[-1], drawn[-2])  # its header says full time
+    assert len(replay_frames(replay, scale=2, full_time=False)) == 40
     view = replay_frames(replay, view=2, scale=2)
     assert not np.array_equal(view[5], drawn[5])
     with pytest.raises(ValueError, match="view=4"):
@@ -173,7 +175,7 @@ def test_save_refuses_bad_arrays(match, tmp_path) -> None:
         replay_from_match(result, params, 6, "random", "naive")
 
 
-def test_render_command_writes_one_frame_per_step(match, tmp_path, capsys) -> None:
+def test_render_command_writes_one_frame_per_step_and_full_time(match, tmp_path, capsys) -> None:
     import imageio.v3 as iio
 
     result, params = match
@@ -181,8 +183,8 @@ def test_render_command_writes_one_frame_per_step(match, tmp_path, capsys) -> No
                        tmp_path / "game.npz")
     out = tmp_path / "game.gif"
     eval_main(["render", str(path), "--out", str(out), "--scale", "2", "--view", "1"])
-    assert iio.imread(out, index=None).shape[0] == 40
-    assert "wrote" in capsys.readouterr().out
+    assert iio.imread(out, index=None).shape[0] == 41
+    assert "(41 frames, the last at full time)" in capsys.readouterr().out
     broken = tmp_path / "broken.npz"
     broken.write_bytes(path.read_bytes()[:100])
     with pytest.raises(ReplayError, match="broken.npz"):

@@ -217,7 +217,10 @@ def _header(canvas: _Canvas, state: State, params: EnvParams, team_names: Sequen
     draw = canvas.draw
     middle = header / 2
     pad = header * 0.4
-    step = f"step {int(state.step)}/{int(params.episode_length)}"
+    step = (
+        "full time" if int(state.step) >= int(params.episode_length)
+        else f"step {int(state.step)}/{int(params.episode_length)}"
+    )
     draw.text((pad, middle), step, fill=TEXT_COLOUR, font=font, anchor="lm")
     score = np.asarray(state.score).astype(int)
     pieces = (
@@ -483,6 +486,20 @@ def frames_from_states(
                 render_observation(state_t, params, player, entity_mask=masks[t], **kwargs)
             )
     return frames
+
+
+def with_full_time(states: State, final_score: Sequence[int]) -> State:
+    """``states`` (leading time axis ``[T]``) and one more entry: the last positions with the
+    final score (goals of team 0 and team 1) and a step past the last, which frames label "full
+    time". A record holds the state before each step, so a goal in the last step shows only
+    here."""
+    host = _host_state(states)
+    last = jax.tree.map(lambda leaf: leaf[-1:], host)
+    last = last.replace(
+        score=np.asarray([final_score], dtype=np.asarray(host.score).dtype),
+        step=np.asarray(host.step[-1:]) + 1,
+    )
+    return jax.tree.map(lambda a, b: np.concatenate([a, b]), host, last)
 
 
 # ------------------------------------------------------------------------------------- videos

@@ -321,7 +321,8 @@ def render_command(args: RenderArgs) -> Path:
     path = render_replay(replay, args.out, view=args.view, fps=args.fps, scale=args.scale,
                          progress=True)
     print(f"{replay.team_names[0]} {replay.final_score[0]} : {replay.final_score[1]} "
-          f"{replay.team_names[1]}; wrote {path} ({replay.num_steps} frames)")
+          f"{replay.team_names[1]}; wrote {path} ({replay.num_steps + 1} frames, the last at "
+          "full time)")
     return path
 
 

@@ -94,7 +94,7 @@ def play_and_render(
     Returns the video's path (None when ``out`` is None)."""
     from rich.console import Console
 
-    from elevens.env.render import frames_from_states, save_video
+    from elevens.env.render import frames_from_states, save_video, with_full_time
     from elevens.eval.replay import SUFFIX, replay_from_match, save_replay
     from elevens.eval.teams import (
         check_team_size,
@@ -142,7 +142,8 @@ def play_and_render(
         console.print(f"wrote {saved}", markup=False)
     if out is None:
         return None
-    states = states_from_record(result.record, 0, params)
+    states = with_full_time(states_from_record(result.record, 0, params),
+                            (goals_for, goals_against))  # home on side 0
     frames = frames_from_states(
         states, params, player=view, progress=True, team_names=(home_name, away_name),
         scale=scale,

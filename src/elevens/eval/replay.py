@@ -398,17 +398,22 @@ def render_replay(
 
 
 def replay_frames(
-    replay: Replay, *, view: int | None = None, scale: float = 6, progress: bool = False
+    replay: Replay, *, view: int | None = None, scale: float = 6, progress: bool = False,
+    full_time: bool = True,
 ) -> list[np.ndarray]:
-    """The replay's frames ``uint8[H, W, 3]`` (``elevens.env.render.frames_from_states``)."""
-    from elevens.env.render import frames_from_states
+    """The replay's frames ``uint8[H, W, 3]`` (``elevens.env.render.frames_from_states``), and
+    with ``full_time`` one more showing the final score."""
+    from elevens.env.render import frames_from_states, with_full_time
 
     num_players = 2 * replay.players_per_team
     if view is not None and not 0 <= view < num_players:
         raise ValueError(
             f"view={view} is invalid: it must be a player row from 0 to {num_players - 1}"
         )
+    states = replay.states()
+    if full_time:
+        states = with_full_time(states, replay.final_score)
     return frames_from_states(
-        replay.states(), replay.params, player=view, progress=progress,
+        states, replay.params, player=view, progress=progress,
         team_names=replay.team_names, scale=scale,
     )

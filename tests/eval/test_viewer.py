@@ -171,3 +171,59 @@ def test_a_folder_lists_every_replay_under_it(replays, tmp_path) -> None:
     (tmp_path / "empty").mkdir()
     with pytest.raises(ReplayError, match="no replay .* under this folder"):
         replay_files([tmp_path / "empty"])
+
+
+@pytest.mark.parametrize("size", [(1280, 720), (1366, 768), (1920, 1080)])
+def test_page_fits_the_window_and_the_keyboard_works_after_a_drag(replays, size) -> None:
+    executable = _browser_or_skip()
+    from playwright.sync_api import sync_playwright
+
+    width, height = size
+    replay = replays[0]
+    errors: list[str] = []
+    with ReplayServer(replays, ["a.npz", "b.npz"]) as server, sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=executable, args=CHROMIUM_ARGS)
+        try:
+            page = browser.new_page(viewport={"width": width, "height": height})
+            page.on("pageerror", lambda error: errors.append(str(error)))
+            page.goto(server.url + "#replay=0")
+            page.wait_for_function("window.viewerState && window.viewerState.ready",
+                                   timeout=15_000)
+            # Everything is in view at once: nothing below the fold, nothing scrolled away.
+            for selector in ("#scoreboard", "#clock", "#pitch", "#controls", "#play"):
+                box = page.locator(selector).bounding_box()
+                assert box is not None, selector
+                assert box["y"] >= 0 and box["y"] + box["height"] <= height + 0.5, selector
+                assert box["x"] >= 0 and box["x"] + box["width"] <= width + 0.5, selector
+            assert page.evaluate("document.scrollingElement.scrollHeight") <= height
+            # A drag on the scrubber pauses; afterwards Space plays again, Home and End jump.
+            box = page.locator("#scrubber").bounding_box()
+            middle = box["y"] + box["height"] / 2
+            page.mouse.move(box["x"] + 5, middle)
+            page.mouse.down()
+            page.mouse.move(box["x"] + box["width"] / 2, middle, steps=5)
+            page.mouse.up()
+            assert page.evaluate("viewerState.playing") is False
+            dragged = page.evaluate("viewerState.frame")
+            assert 15 <= dragged <= 45
+            page.keyboard.press("Space")
+            assert page.evaluate("viewerState.playing") is True
+            page.keyboard.press("End")
+            assert page.evaluate("viewerState.frame") == 59
+            assert page.evaluate("viewerState.playing") is False
+            page.keyboard.press("Home")
+            assert page.evaluate("viewerState.frame") == 0
+            # The frame box jumps to a frame.
+            page.fill("#frame-box", "42")
+            page.press("#frame-box", "Enter")
+            assert page.evaluate("viewerState.frame") == 42
+            # One mark on the timeline per goal, at the frame the score changes.
+            goals = int(sum(replay.final_score))
+            assert page.locator("#goal-marks span").count() == goals
+            marked = page.evaluate("viewerState.goalFrames.map((g) => g.frame)")
+            changes = np.flatnonzero(np.diff(np.vstack([replay.score, [replay.final_score]]),
+                                             axis=0).sum(axis=1)) + 1
+            assert marked == [min(int(f), 59) for f in changes]
+        finally:
+            browser.close()
+    assert errors == []

@@ -38,6 +38,7 @@
     ballVisible: false,
     score: [0, 0],
     teamNames: ["", ""],
+    goalFrames: [],
     framesDrawn: 0,
   };
   window.viewerState = state;
@@ -50,6 +51,9 @@
     back: document.getElementById("step-back"),
     forward: document.getElementById("step-forward"),
     scrubber: document.getElementById("scrubber"),
+    frameBox: document.getElementById("frame-box"),
+    goalMarks: document.getElementById("goal-marks"),
+    stage: document.getElementById("stage"),
     speed: document.getElementById("speed"),
     trail: document.getElementById("trail"),
     team0: document.getElementById("team0"),
@@ -87,9 +91,15 @@
   function resize() {
     if (!field) return;
     const ratio = window.devicePixelRatio || 1;
-    const cssWidth = canvas.clientWidth || 1000;
     const worldWidth = 2 * field.hl + 2 * MARGIN;
     const worldHeight = 2 * field.hw + 2 * MARGIN;
+    // The largest pitch that fits the stage's width and height (the window less the header,
+    // controls and text), so nothing needs scrolling.
+    const available = els.stage.getBoundingClientRect();
+    const cssWidth = Math.max(
+      200, Math.floor(Math.min(available.width, available.height * worldWidth / worldHeight)),
+    );
+    canvas.style.width = `${cssWidth}px`;
     canvas.width = Math.round(cssWidth * ratio);
     canvas.height = Math.round(canvas.width * worldHeight / worldWidth);
     scale = canvas.width / worldWidth;
@@ -301,12 +311,13 @@
       ? `full time (${replay.steps} steps)`
       : `step ${state.step} / ${replay.steps}`;
     els.scrubber.value = String(state.frame);
+    if (document.activeElement !== els.frameBox) els.frameBox.value = String(state.frame);
     els.play.textContent = state.playing ? "❚❚ pause" : "▶ play";
     canvas.dataset.frame = String(state.frame);
     canvas.dataset.selected = state.selected === null ? "" : String(state.selected);
     if (state.selected === null) {
       els.info.textContent = "Click a player to select it and see its field of view. " +
-        "Space plays and pauses; the arrow keys step.";
+        "Space plays and pauses; the arrow keys step; Home and End go to the ends.";
     } else {
       const n = replay.players_per_team;
       const team = Math.floor(state.selected / n);
@@ -419,11 +430,36 @@
     els.team0.textContent = replay.team_names[0];
     els.team1.textContent = replay.team_names[1];
     els.scrubber.max = String(state.numFrames - 1);
+    els.frameBox.max = String(state.numFrames - 1);
+    markGoals();
     els.select.value = String(index);
     state.frame = 0;
     resize();
     state.ready = true;
     play();
+  }
+
+  function markGoals() {
+    // A mark under the timeline at each frame whose score differs from the frame before, in
+    // the scoring team's colour; the final score counts for a goal in the last step.
+    els.goalMarks.replaceChildren();
+    state.goalFrames = [];
+    const last = state.numFrames - 1;
+    for (let frame = 1; frame <= last + 1; frame++) {
+      const before = replay.score[frame - 1];
+      const after = frame <= last ? replay.score[frame] : replay.final_score;
+      for (const team of [0, 1]) {
+        if (after[team] > before[team]) {
+          const at = Math.min(frame, last);
+          state.goalFrames.push({ frame: at, team });
+          const mark = document.createElement("span");
+          mark.className = `team${team}`;
+          mark.style.left = `${(100 * at) / Math.max(1, last)}%`;
+          mark.title = `${replay.team_names[team]} scores (frame ${at})`;
+          els.goalMarks.appendChild(mark);
+        }
+      }
+    }
   }
 
   async function start() {
@@ -455,7 +491,20 @@
   els.play.addEventListener("click", () => (state.playing ? pause() : play()));
   els.back.addEventListener("click", () => { pause(); seek(state.frame - 1); });
   els.forward.addEventListener("click", () => { pause(); seek(state.frame + 1); });
-  els.scrubber.addEventListener("input", () => seek(Number(els.scrubber.value)));
+  // Dragging the scrubber pauses; letting go hands the keyboard back to the page.
+  els.scrubber.addEventListener("input", () => {
+    const frame = Number(els.scrubber.value); // read first: pause() redraws the old frame
+    pause();
+    seek(frame);
+  });
+  els.scrubber.addEventListener("change", () => els.scrubber.blur());
+  els.scrubber.addEventListener("pointerup", () => els.scrubber.blur());
+  els.frameBox.addEventListener("change", () => {
+    const frame = Number(els.frameBox.value);
+    pause();
+    seek(frame);
+    els.frameBox.blur();
+  });
   els.speed.addEventListener("change", () => { state.speed = Number(els.speed.value); });
   els.trail.addEventListener("change", () => { state.trail = els.trail.checked; draw(); });
   els.select.addEventListener("change", () => {
@@ -476,6 +525,8 @@
     if (event.code === "Space") { event.preventDefault(); state.playing ? pause() : play(); }
     if (event.code === "ArrowLeft") { pause(); seek(state.frame - 1); }
     if (event.code === "ArrowRight") { pause(); seek(state.frame + 1); }
+    if (event.code === "Home") { event.preventDefault(); pause(); seek(0); }
+    if (event.code === "End") { event.preventDefault(); pause(); seek(state.numFrames - 1); }
   });
   window.addEventListener("resize", resize);
 

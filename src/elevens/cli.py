@@ -61,6 +61,8 @@ class PlayArgs:
     """Draw this player's field of view (world row: team 0 is 0..n-1, team 1 is n..2n-1)."""
     replay: Path | None = None
     """Also save the game as a replay (.npz) that `elevens view` and `elevens render` open."""
+    follow_ball: float | None = None
+    """Zoom in on a window this many metres wide that follows the ball (e.g. 40)."""
     deterministic: bool | None = None
     """Trained teams play tanh(mean) (True) or sample (False); default: each team's setting."""
 
@@ -115,7 +117,7 @@ def play(args: PlayArgs) -> Path | None:
     return play_and_render(
         home=args.home, away=args.away, players=args.players, out=args.out,
         seed=args.seed, steps=args.steps, fps=args.fps, scale=args.scale, view=args.view,
-        replay=args.replay, deterministic=args.deterministic,
+        replay=args.replay, deterministic=args.deterministic, follow_ball=args.follow_ball,
     )
 
 

@@ -55,6 +55,7 @@ NUMERIC_RANGES: dict[str, tuple[float, float]] = {
     "threshold": (0.0, 1.0),
     "minutes": (1e-9, math.inf),
     "learning_rate": (1e-12, math.inf),
+    "follow_ball": (1.0, math.inf),
 }
 """Every numeric field of the subcommands' args, by name (tests/test_cli.py checks that none is
 missing). Finer checks that need the game (``--view`` against the players) come later."""

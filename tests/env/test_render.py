@@ -277,3 +277,20 @@ def test_video_rejects_unknown_suffix_and_bad_frames(small_frames: list[np.ndarr
         render.save_mp4([], tmp_path / "empty.mp4")
     with pytest.raises(ValueError, match="fps"):
         render.save_gif(small_frames, tmp_path / "slow.gif", fps=0)
+
+
+def test_follow_ball_zooms_on_the_ball_and_keeps_the_header() -> None:
+    env, params = elevens.make("2v2", episode_length=3)
+    state, _ = env.reset(jax.random.key(1), params)
+    states = jax.tree.map(lambda leaf: np.stack([np.asarray(leaf)] * 2), state)
+    plain = render.frames_from_states(states, params, scale=4)
+    zoomed = render.frames_from_states(states, params, scale=4, follow_ball=20.0)
+    assert zoomed[0].shape == plain[0].shape
+    header = render._layout(params, 4).header_px
+    np.testing.assert_array_equal(zoomed[0][:header], plain[0][:header])
+    assert not np.array_equal(zoomed[0][header:], plain[0][header:])
+    # The ball (white) fills far more of the zoomed picture.
+    white = [np.all(frame[header:] > 245, axis=-1).sum() for frame in (plain[0], zoomed[0])]
+    assert white[1] > 3 * white[0]
+    with pytest.raises(ValueError, match="follow_ball=0"):
+        render.frames_from_states(states, params, follow_ball=0)

@@ -451,16 +451,20 @@ def frames_from_states(
     *,
     player: int | tuple[int, int] | None = None,
     progress: bool = False,
+    follow_ball: float | None = None,
     **kwargs: Any,
 ) -> list[np.ndarray]:
     """Draw every step of a stacked history.
 
     states: State with a leading time axis ``[T, ...]`` on every leaf (e.g. from ``lax.scan`` or
     ``jax.tree.map(lambda *x: jnp.stack(x), *states)``). player: draw that player's observation
-    view instead of the plain frame. progress: show a rich progress bar. kwargs go to
-    ``render_frame`` / ``render_observation`` (scale, team_names, title, highlight).
-    Returns T arrays ``uint8[H, W, 3]``.
+    view instead of the plain frame. progress: show a rich progress bar. follow_ball: zoom in
+    on a window this many metres wide that follows the ball (the header stays; the frame keeps
+    its size). kwargs go to ``render_frame`` / ``render_observation`` (scale, team_names,
+    title, highlight). Returns T arrays ``uint8[H, W, 3]``.
     """
+    if follow_ball is not None and not follow_ball > 0:
+        raise ValueError(f"follow_ball={follow_ball!r} is invalid: give a window width > 0 m")
     host = _host_state(states)
     if np.ndim(host.step) != 1:
         raise ValueError(
@@ -480,12 +484,33 @@ def frames_from_states(
     for t in indices:
         state_t = jax.tree.map(lambda leaf, t=t: leaf[t], host)
         if player is None or masks is None:
-            frames.append(render_frame(state_t, params, **kwargs))
+            frame = render_frame(state_t, params, **kwargs)
         else:
-            frames.append(
-                render_observation(state_t, params, player, entity_mask=masks[t], **kwargs)
-            )
+            frame = render_observation(state_t, params, player, entity_mask=masks[t], **kwargs)
+        if follow_ball is not None:
+            frame = _zoom(frame, params, np.asarray(state_t.ball_position), follow_ball,
+                          float(kwargs.get("scale", 8)))
+        frames.append(frame)
     return frames
+
+
+def _zoom(frame: np.ndarray, params: EnvParams, centre: np.ndarray, width_m: float,
+          scale: float) -> np.ndarray:
+    """The part of ``frame`` below its header, ``width_m`` metres wide with the frame's aspect,
+    centred on ``centre`` (kept inside the picture), scaled back up to the frame's size."""
+    layout = _layout(params, scale)
+    header = layout.header_px
+    body = frame[header:]
+    height, width = body.shape[:2]
+    crop_w = min(width, max(8, round(width_m * scale)))
+    crop_h = min(height, max(8, round(crop_w * height / width)))
+    column, row = _to_pixel(layout, centre)
+    row -= header
+    left = int(np.clip(round(column - crop_w / 2), 0, width - crop_w))
+    top = int(np.clip(round(row - crop_h / 2), 0, height - crop_h))
+    window = Image.fromarray(body[top:top + crop_h, left:left + crop_w])
+    zoomed = np.asarray(window.resize((width, height), Image.Resampling.BILINEAR))
+    return np.concatenate([frame[:header], zoomed], axis=0)
 
 
 def with_full_time(states: State, final_score: Sequence[int]) -> State:

@@ -117,6 +117,8 @@ class RenderArgs:
     """Frames per second."""
     scale: int = 6
     """Pixels per metre."""
+    follow_ball: float | None = None
+    """Zoom in on a window this many metres wide that follows the ball (e.g. 40)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -319,7 +321,7 @@ def render_command(args: RenderArgs) -> Path:
 
     replay = load_replay(args.replay)
     path = render_replay(replay, args.out, view=args.view, fps=args.fps, scale=args.scale,
-                         progress=True)
+                         progress=True, follow_ball=args.follow_ball)
     print(f"{replay.team_names[0]} {replay.final_score[0]} : {replay.final_score[1]} "
           f"{replay.team_names[1]}; wrote {path} ({replay.num_steps + 1} frames, the last at "
           "full time)")

@@ -87,6 +87,7 @@ def play_and_render(
     view: int | None = None,
     replay: Path | None = None,
     deterministic: bool | None = None,
+    follow_ball: float | None = None,
 ) -> Path | None:
     """Play one game (home on side 0) and write it as a GIF or MP4 with a progress bar, and as
     a replay file (``elevens view`` opens it) when ``replay`` is given. Teams are specs of
@@ -146,7 +147,7 @@ def play_and_render(
                             (goals_for, goals_against))  # home on side 0
     frames = frames_from_states(
         states, params, player=view, progress=True, team_names=(home_name, away_name),
-        scale=scale,
+        scale=scale, follow_ball=follow_ball,
     )
     save_video(frames, Path(out), fps=fps)
     console.print(f"wrote {out} ({len(frames)} frames)", markup=False)

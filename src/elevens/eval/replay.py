@@ -388,18 +388,20 @@ def render_replay(
     fps: float = 20,
     scale: float = 6,
     progress: bool = False,
+    follow_ball: float | None = None,
 ) -> Path:
     """Draw a replay to a GIF or MP4 (by suffix); ``view``: a player row whose field of view
     is drawn (team 0 is 0..n-1, team 1 n..2n-1)."""
     from elevens.env.render import save_video
 
-    frames = replay_frames(replay, view=view, scale=scale, progress=progress)
+    frames = replay_frames(replay, view=view, scale=scale, progress=progress,
+                           follow_ball=follow_ball)
     return save_video(frames, out, fps=fps)
 
 
 def replay_frames(
     replay: Replay, *, view: int | None = None, scale: float = 6, progress: bool = False,
-    full_time: bool = True,
+    full_time: bool = True, follow_ball: float | None = None,
 ) -> list[np.ndarray]:
     """The replay's frames ``uint8[H, W, 3]`` (``elevens.env.render.frames_from_states``), and
     with ``full_time`` one more showing the final score."""
@@ -415,5 +417,5 @@ def replay_frames(
         states = with_full_time(states, replay.final_score)
     return frames_from_states(
         states, replay.params, player=view, progress=progress,
-        team_names=replay.team_names, scale=scale,
+        team_names=replay.team_names, scale=scale, follow_ball=follow_ball,
     )

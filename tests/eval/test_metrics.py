@@ -285,5 +285,10 @@ def test_statistics_of_real_games_add_up() -> None:
     shares = home["possession"][:, 0] + away["possession"][:, 0]
     np.testing.assert_allclose(shares[np.isfinite(shares)], 1.0)  # the two shares complement
     np.testing.assert_array_equal(home["goals"][:, 0], np.asarray(result.goals_for))
+    # Nearly every goal the record holds follows a shot on target (the exceptions: the random
+    # team's own goals, as in game 0, where its push at step 37 was the last touch).
+    score = np.asarray(result.record.score)  # [G, T, 2], the home team on side 0 first
+    recorded = np.where(np.asarray(result.home_side) == 0, score[:, -1, 0], score[:, -1, 1])
+    assert home["shots_on_target"].sum() >= 0.75 * recorded.sum() > 0
     # The naive team chases the ball: it holds it more than the random team does.
     assert np.nanmean(home["possession"]) > 0.5

@@ -17,8 +17,8 @@ outcome            per game: win 1, draw 0.5, loss 0                            
 possession         per game: the team's share of the steps either team had the  -        higher
                    ball (see below)
 passes             per game: the team's kicks whose next touch is a teammate's  count    higher
-shots_on_target    per game: the team's kicks aimed into the goal mouth with    count    higher
-                   the reach to get there, or followed by its goal
+shots_on_target    per game: the team's touches followed by its goal, and its   count    higher
+                   kicks aimed into the goal mouth with the reach to get there
 goals              per game: the team's goals (all from open play: the game has count    higher
                    no set pieces)
 =================  ===========================================================  =======  ======
@@ -29,9 +29,11 @@ which players of both teams touch the ball is contested: nobody has it after it.
 touching team has the ball from that step until the other team touches it or a goal restarts
 play; if several of its players touch in one step, the toucher is the first kicker among them
 (else the first pusher). A pass is a kick by player A whose next touch (before any goal) is by
-a teammate B != A. A kick is a shot on target when the ball, as it leaves the step, heads for
-the attacked goal line and crosses it inside the mouth within its rolling reach (speed * f /
-(1 - f) with friction f, SPEC.md), or when the team scores before the next touch. Matches
+a teammate B != A. A touch is a shot on target when the team scores before the next touch, or
+when it is a kick after which the ball heads for the attacked goal line and crosses it inside
+the mouth within its rolling reach (speed * f / (1 - f) with friction f, SPEC.md). So every
+goal counts as a shot on target, but own goals (the other team touched the ball last) and a
+goal in the last step (which the record does not hold). Matches
 recorded without touches (replays) give NaN for these four.
 
 (The "better" column is the thesis' reading of table 6.4; rows 3 and 4 are "higher is better"
@@ -270,32 +272,32 @@ def _game_statistics(
     held = [0, 0, 0]  # steps held by nobody, the team, the opponent (indexed by holder)
     last: tuple[int, int, bool] | None = None  # (team 1 / opponent -1, player, kicked)
     passes = shots = 0
-    pending_shot = False  # a kick off target whose ball may still go in before the next touch
+    # The team's last touch, until the next event (a touch or a goal) says whether it was a
+    # shot on target: a goal for the team, or a kick aimed into the mouth with the reach.
+    pending = aimed = False
     for t in range(steps):
         if scored_for[t] or scored_against[t]:  # a goal in step t - 1: play restarts
-            if pending_shot and scored_for[t]:
-                shots += 1
-            pending_shot, holder, last = False, 0, None
-        if own_touch[t] and other_touch[t]:  # contested
-            holder, last, pending_shot = 0, None, False
+            shots += pending and (scored_for[t] or aimed)
+            pending = aimed = False
+            holder, last = 0, None
+        if own_touch[t] or other_touch[t]:
+            shots += pending and aimed  # on target, but it did not go in
+            pending = aimed = False
+        if own_touch[t] and other_touch[t]:  # contested: still a touch of the team's
+            holder, last, pending = 0, None, True
         elif own_touch[t]:
             kicked = own_kick[t]
             player = int(np.flatnonzero(kicks[t] if kicked else touches[t])[0])
             if last is not None and last[0] == 1 and last[2] and last[1] != player:
                 passes += 1
-            pending_shot = False
-            if kicked:
-                next_scores = t + 1 < steps and scored_for[t + 1]
-                if not next_scores and t + 1 < steps and _on_target(
-                    ball[t + 1], ball_velocity[t + 1], params
-                ):
-                    shots += 1
-                else:
-                    pending_shot = True  # credited if the team scores before another touch
+            pending = True
+            aimed = kicked and t + 1 < steps and not (scored_for[t + 1] or scored_against[
+                t + 1]) and _on_target(ball[t + 1], ball_velocity[t + 1], params)
             holder, last = 1, (1, player, kicked)
         elif other_touch[t]:
-            holder, last, pending_shot = -1, (-1, 0, False), False
+            holder, last = -1, (-1, 0, False)
         held[holder] += 1
+    shots += pending and aimed
     possessed = held[1] + held[-1]
     share = held[1] / possessed if possessed else float("nan")
     return float(share), passes, shots

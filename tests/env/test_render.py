@@ -294,3 +294,33 @@ def test_follow_ball_zooms_on_the_ball_and_keeps_the_header() -> None:
     assert white[1] > 3 * white[0]
     with pytest.raises(ValueError, match="follow_ball=0"):
         render.frames_from_states(states, params, follow_ball=0)
+
+
+def test_players_carry_their_numbers_and_unseen_ones_keep_their_hue(
+    params_2v2: EnvParams,
+) -> None:
+    # Players 1 and 2 of each team, far apart; numbers sit above and to the right of a player.
+    state = hand_state(params_2v2, [(-30.0, 10.0), (-30.0, -20.0), (20.0, 20.0), (25.0, -10.0)],
+                       [0.0, 0.0, math.pi, math.pi], ball=(0.0, 0.0))
+    frame = render.render_frame(state, params_2v2)
+
+    def label_box(xy: tuple[float, float]) -> np.ndarray:
+        # Pixels 1 to 4 m up and right of the centre: the number, on grass otherwise.
+        (c0, r0), (c1, r1) = (render.world_to_pixel(np.asarray(p), params_2v2, scale=8)
+                              for p in ((xy[0] + 0.6, xy[1] + 4.0), (xy[0] + 3.5, xy[1] + 0.6)))
+        return frame[int(r0):int(r1), int(c0):int(c1)]
+
+    for xy in [(-30.0, 10.0), (-30.0, -20.0), (20.0, 20.0), (25.0, -10.0)]:
+        white = np.all(label_box(xy) >= 240, axis=-1).sum()
+        assert white >= 6, xy  # the digit's white fill
+    # The two players of a team carry different numbers.
+    assert not np.array_equal(np.all(label_box((-30.0, 10.0)) >= 240, axis=-1),
+                              np.all(label_box((-30.0, -20.0)) >= 240, axis=-1))
+    # In player 0's view the red player behind it is unseen: pale, but still red, not green.
+    view = render.render_observation(state, params_2v2, (0, 0))
+    behind = hand_state(params_2v2, [(0.0, 0.0), (-30.0, -20.0), (-20.0, 0.0), (25.0, -10.0)],
+                        [0.0, 0.0, math.pi, math.pi], ball=(10.0, 0.0))
+    view = render.render_observation(behind, params_2v2, (0, 0))
+    red = pixel(view, params_2v2, (-19.6, 0.4))  # in the disc, off its heading tick
+    assert red[0] > red[1] + 40 and red[0] > red[2] + 40
+    assert not is_colour(red, TEAM1_RED)  # and faded

@@ -17,6 +17,7 @@ from pathlib import Path
 import jax
 import numpy as np
 import pytest
+from PIL import Image
 
 import elevens
 from elevens.env.observe import observe
@@ -174,7 +175,9 @@ def test_a_folder_lists_every_replay_under_it(replays, tmp_path) -> None:
 
 
 @pytest.mark.parametrize("size", [(1280, 720), (1366, 768), (1920, 1080)])
-def test_page_fits_the_window_and_the_keyboard_works_after_a_drag(replays, size) -> None:
+def test_page_fits_the_window_and_the_keyboard_works_after_a_drag(
+    replays, size, tmp_path
+) -> None:
     executable = _browser_or_skip()
     from playwright.sync_api import sync_playwright
 
@@ -196,6 +199,10 @@ def test_page_fits_the_window_and_the_keyboard_works_after_a_drag(replays, size)
                 assert box["y"] >= 0 and box["y"] + box["height"] <= height + 0.5, selector
                 assert box["x"] >= 0 and box["x"] + box["width"] <= width + 0.5, selector
             assert page.evaluate("document.scrollingElement.scrollHeight") <= height
+            shot = tmp_path / f"viewer_{width}x{height}.png"
+            page.screenshot(path=str(shot))
+            with Image.open(shot) as image:
+                assert image.size == (width, height)
             # A drag on the scrubber pauses; afterwards Space plays again, Home and End jump.
             box = page.locator("#scrubber").bounding_box()
             middle = box["y"] + box["height"] / 2

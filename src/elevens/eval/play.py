@@ -10,7 +10,6 @@ import jax.numpy as jnp
 
 import elevens
 from elevens.env import EnvParams, State
-from elevens.env.params import MAX_PLAYERS_PER_TEAM as MAX_PLAYERS
 from elevens.eval.match import MatchRecord, play_match
 from elevens.teams.base import TeamPolicy
 from elevens.teams.scripted import Field, NaiveTeam, RandomTeam, TeamworkTeam
@@ -112,8 +111,6 @@ def play_and_render(
         raise ValueError(f"out={str(out)!r} is invalid: the suffix must be .gif or .mp4")
     if replay is not None and Path(replay).suffix.lower() != SUFFIX:
         raise ValueError(f"replay={str(replay)!r} is invalid: the suffix must be {SUFFIX}")
-    if not 1 <= players <= MAX_PLAYERS:
-        raise ValueError(f"players={players} is invalid: it must be from 1 to {MAX_PLAYERS}")
     teams = [load_team(spec, deterministic=deterministic) for spec in (home, away)]
     for team in teams:
         check_team_size(team, players)

@@ -225,21 +225,34 @@ def _open_checkpoint(path: Path, iteration: int | None) -> tuple[Any, int, Any]:
     return checkpointer, step, config
 
 
-def _restore_train_state(checkpointer: Any, step: int, config: Any) -> Any:
-    """The TrainState saved at ``step``, restored into the shapes ``config`` builds."""
+def _train_state_shape(config: Any) -> Any:
+    """The abstract TrainState ``config`` builds (shapes only: nothing is computed)."""
     from elevens.train.trainer import make_trainer
 
-    target = jax.eval_shape(make_trainer(config).init, jax.random.key(0))
-    state, _, _ = checkpointer.restore(target, step)
+    return jax.eval_shape(make_trainer(config).init, jax.random.key(0))
+
+
+def _restore_train_state(checkpointer: Any, step: int, config: Any) -> Any:
+    """The TrainState saved at ``step``, restored into the shapes ``config`` builds."""
+    state, _, _ = checkpointer.restore(_train_state_shape(config), step)
     return state
 
 
 def _intact_train_state_step(checkpointer: Any, before: int, config: Any) -> int | None:
     """The newest step before ``before`` whose TrainState restores, or None."""
-    from elevens.train.trainer import make_trainer
+    return cast(int | None, checkpointer.last_intact_step(_train_state_shape(config), before))
 
-    target = jax.eval_shape(make_trainer(config).init, jax.random.key(0))
-    return cast(int | None, checkpointer.last_intact_step(target, before))
+
+def _network_team(config: Any, deterministic: bool | None) -> TeamPolicy:
+    """The NetworkTeam of ``config``'s policy; ``deterministic`` None takes the run's
+    ``run.eval_deterministic``."""
+    from elevens.nets.team import NetworkTeam
+
+    if deterministic is None:
+        deterministic = bool(config.run.eval_deterministic)
+    return NetworkTeam(
+        policy=config.network.policy(), deterministic=deterministic, name=NETWORK_TEAM_NAME
+    )
 
 
 def load_train_state(path: Path, iteration: int | None = None) -> tuple[Any, Any]:
@@ -255,7 +268,6 @@ def _load_checkpoint(
     path: Path, iteration: int | None, deterministic: bool | None
 ) -> tuple[TeamPolicy, Any, Any]:
     """(NetworkTeam, policy params, TrainConfig) of a checkpoint; see load_checkpoint_team."""
-    from elevens.nets.team import NetworkTeam
     from elevens.train.checkpoint import CheckpointError
 
     checkpointer, step, config = _open_checkpoint(path, iteration)
@@ -285,38 +297,20 @@ def _load_checkpoint(
             )
     finally:
         checkpointer.close()
-    if deterministic is None:
-        deterministic = bool(config.run.eval_deterministic)
-    team = NetworkTeam(policy=policy, deterministic=deterministic, name=NETWORK_TEAM_NAME)
-    return team, policy_params, config
+    return _network_team(config, deterministic), policy_params, config
 
 
 def load_team(spec: str | TeamSpec, *, deterministic: bool | None = None) -> Team:
     """A ``Team`` from a spec word (or a parsed ``TeamSpec``); see the module docstring."""
     from elevens.eval.play import resolve_team
-    from elevens.nets.team import NetworkTeam
 
     parsed = parse_team_spec(spec) if isinstance(spec, str) else spec
     if parsed.handcrafted is not None:
         return Team(name=parsed.name, policy=resolve_team(parsed.handcrafted), spec=parsed.text)
-    exported = parsed.path is not None and is_exported_team(parsed.path)
-    if parsed.shipped is not None or exported:
-        if parsed.shipped is not None:
-            config, networks = load_shipped_team(parsed.shipped)
-        else:
-            assert parsed.path is not None
-            if parsed.iteration is not None:
-                raise ValueError(
-                    f"team spec {parsed.text!r}: an exported team has one set of networks, "
-                    "drop the '@ITERATION'"
-                )
-            config, networks = load_exported_team(parsed.path)
-        if deterministic is None:
-            deterministic = bool(config.run.eval_deterministic)
-        policy: TeamPolicy = NetworkTeam(
-            policy=config.network.policy(), deterministic=deterministic, name=NETWORK_TEAM_NAME
-        )
-        params = networks.policy
+    folder = load_team_folder(parsed)
+    if folder is not None:
+        config, networks = folder
+        policy, params = _network_team(config, deterministic), networks.policy
     else:
         assert parsed.path is not None
         policy, params, config = _load_checkpoint(parsed.path, parsed.iteration, deterministic)
@@ -346,12 +340,27 @@ def is_exported_team(path: Path) -> bool:
     return (path / NETWORKS_FILE).is_file()
 
 
+def load_team_folder(spec: TeamSpec) -> tuple[Any, Any] | None:
+    """(TrainConfig, LearnerParams) when ``spec`` names a shipped team or an exported folder,
+    else None (a handcrafted team or a training checkpoint)."""
+    if spec.shipped is not None:
+        return load_shipped_team(spec.shipped)
+    if spec.path is None or not is_exported_team(spec.path):
+        return None
+    if spec.iteration is not None:
+        raise ValueError(
+            f"team spec {spec.text!r}: an exported team has one set of networks, drop the "
+            "'@ITERATION'"
+        )
+    return load_exported_team(spec.path)
+
+
 def load_exported_team(directory: Path) -> tuple[Any, Any]:
     """(TrainConfig, LearnerParams) of a folder written by ``export_team``, checked against the
     networks its config builds; damaged files are a ``ShippedTeamError`` naming the file."""
     from elevens.teams.trained import CONFIG_FILE, ShippedTeamError, check_like, load_networks
     from elevens.train.config import TrainConfig
-    from elevens.train.trainer import LearnerParams, make_trainer
+    from elevens.train.trainer import LearnerParams
 
     raw_config, networks = load_networks(directory)
     try:
@@ -360,7 +369,7 @@ def load_exported_team(directory: Path) -> tuple[Any, Any]:
         raise ShippedTeamError(
             f"{directory / CONFIG_FILE} is not a TrainConfig of this version: {error}"
         ) from None
-    target = jax.eval_shape(make_trainer(config).init, jax.random.key(0)).params
+    target = _train_state_shape(config).params
     check_like(networks, {"policy": target.policy, "critic": target.critic}, str(directory))
     return config, LearnerParams(
         policy=jax.tree.map(jnp.asarray, networks["policy"]),

@@ -1018,19 +1018,12 @@ def latest_resumable_step(
 def load_learner_params(text: str) -> tuple[TrainConfig, LearnerParams]:
     """(config, LearnerParams) of a shipped team (``elevens-11v11``) or a training checkpoint:
     a run, checkpoints or step directory, optionally ``PATH@ITERATION``."""
-    from elevens.eval.teams import (
-        is_exported_team,
-        load_exported_team,
-        load_shipped_team,
-        load_train_state,
-        parse_team_spec,
-    )
+    from elevens.eval.teams import load_team_folder, load_train_state, parse_team_spec
 
     spec = parse_team_spec(text)
-    if spec.shipped is not None:
-        return cast(tuple[TrainConfig, LearnerParams], load_shipped_team(spec.shipped))
-    if spec.path is not None and spec.iteration is None and is_exported_team(spec.path):
-        return cast(tuple[TrainConfig, LearnerParams], load_exported_team(spec.path))
+    folder = load_team_folder(spec)
+    if folder is not None:
+        return cast(tuple[TrainConfig, LearnerParams], folder)
     if spec.path is None:
         raise RunRefusedError(
             f"{text!r} is a handcrafted team, not a checkpoint: a run starts only from a "

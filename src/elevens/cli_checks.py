@@ -56,6 +56,9 @@ NUMERIC_RANGES: dict[str, tuple[float, float]] = {
     "minutes": (1e-9, math.inf),
     "learning_rate": (1e-12, math.inf),
     "follow_ball": (1.0, math.inf),
+    "num_processes": (0, math.inf),
+    "process_id": (-1, math.inf),
+    "devices": (1, math.inf),
 }
 """Every numeric field of the subcommands' args, by name (tests/test_cli.py checks that none is
 missing). Finer checks that need the game (``--view`` against the players) come later."""

@@ -26,7 +26,9 @@ different machines compare only beside them (docs/results/throughput.md).
 
 from __future__ import annotations
 
+import dataclasses
 import json as json_lib
+import math
 import statistics
 import time
 from collections.abc import Callable, Sequence
@@ -73,6 +75,13 @@ class TrainBenchResult:
     """Host reference: f32 [64 x 75,776] x [75,776 x 64] (that layer's weight gradient)."""
     host_stream_gbps: float = float("nan")
     """Host reference: bytes read per second by a sum over a 64 MB array."""
+    devices: int = 1
+    """Devices the games were split over (``run.devices``)."""
+    steps_per_s_per_device: float = float("nan")
+    """``steps_per_s / devices``."""
+    scaling_efficiency: float = float("nan")
+    """Steps per second per device against the first device count of the same run (1.0 =
+    linear scaling); NaN for that first count."""
 
 
 REFERENCE_ROWS = 75_776
@@ -135,15 +144,26 @@ def _median_time(run: Callable[[], Any], repeats: int) -> tuple[float, float]:
 
 
 def bench_train(
-    players: int, episode_length: int = 100, repeats: int = 3, games: int | None = None
+    players: int, episode_length: int = 100, repeats: int = 3, games: int | None = None,
+    devices: int = 1, minibatch_games_multiple: int = 1,
 ) -> TrainBenchResult:
-    """Time one training iteration of ``players`` a side and its parts (see the module doc)."""
+    """Time one training iteration of ``players`` a side and its parts (see the module doc).
+    With ``devices`` > 1 the games split over that many devices and only the whole iteration
+    is timed (the parts are NaN)."""
     from elevens.train.trainer import make_trainer
 
     games = max(1, 660 // players) if games is None else games
     units = games * players
-    # Table 6.1's 60 sequences, rounded to whole games that divide the batch (55 for 11 a side).
-    fits = [m for m in range(players, units + 1, players) if units % m == 0]
+    # Table 6.1's 60 sequences, rounded to whole games that divide the batch (55 for 11 a side),
+    # in multiples of minibatch_games_multiple games (each device takes an equal share).
+    step = players * minibatch_games_multiple
+    fits = [m for m in range(step, units + 1, step) if units % m == 0]
+    if not fits:
+        raise ValueError(
+            f"--games={games} is invalid with devices {minibatch_games_multiple}: the games of "
+            f"an iteration must split into minibatches of a multiple of "
+            f"{minibatch_games_multiple} games"
+        )
     minibatch = min(fits, key=lambda m: abs(m - 60))
     config = make_config(
         "11v11" if players == 11 else "2v2",
@@ -154,6 +174,7 @@ def bench_train(
             "run.iterations_per_chunk": 1,
             "ppo.batch_size": units,
             "ppo.minibatch_size": minibatch,
+            "run.devices": devices,
         },
     )
     trainer = make_trainer(config)
@@ -165,6 +186,17 @@ def bench_train(
         return metrics
 
     compile_s, iteration_s = _median_time(full, repeats)
+    if devices > 1:
+        nan = float("nan")
+        return TrainBenchResult(
+            players=players, games=games, episode_length=episode_length,
+            epochs=config.ppo.epochs, minibatch_size=minibatch,
+            steps_per_s=games * episode_length / iteration_s, iteration_s=iteration_s,
+            env_s=nan, rollout_s=nan, update_s=nan, env_share=nan, forward_share=nan,
+            update_share=nan, compile_s=compile_s, repeats=repeats,
+            backend=jax.default_backend(), devices=devices,
+            steps_per_s_per_device=games * episode_length / iteration_s / devices,
+        )
 
     collect = jax.jit(trainer.collect)
     learn = jax.jit(trainer.learn)
@@ -201,6 +233,7 @@ def bench_train(
         host_matmul_gflops=reference.matmul_gflops,
         host_weight_gradient_gflops=reference.weight_gradient_gflops,
         host_stream_gbps=reference.stream_gbps,
+        steps_per_s_per_device=games * episode_length / iteration_s,
     )
 
 
@@ -210,28 +243,67 @@ def run_train_bench(
     episode_length: int = 100,
     repeats: int = 3,
     print_fn: Callable[[str], None] = print,
+    devices: Sequence[int] = (),
+    games: int = 0,
 ) -> list[TrainBenchResult]:
     """Bench each team size; print a line (or, with ``json``, one JSON object) per size.
 
     The JSON objects hold ``players``, ``steps_per_s``, ``env_share``, ``forward_share`` and
-    ``update_share``, with the other fields of ``TrainBenchResult``.
+    ``update_share``, with the other fields of ``TrainBenchResult``. ``devices``: train each
+    size on each of these device counts in turn (the same games and minibatches), and report
+    the scaling efficiency against the first. ``games``: games per iteration (0: 660 / n).
     """
+    available = jax.device_count()
+    for count in devices:
+        if not 1 <= count <= available:
+            raise ValueError(
+                f"--devices={count} is invalid: this process sees {available} device(s) "
+                f"({jax.default_backend()}); on a CPU, XLA_FLAGS="
+                "--xla_force_host_platform_device_count=N gives N host devices"
+            )
+    multiple = math.lcm(*devices) if devices else 1
     results = []
     for n in players:
-        result = bench_train(n, episode_length=episode_length, repeats=repeats)
-        results.append(result)
-        if json:
-            print_fn(json_lib.dumps(asdict(result)))
-        else:
-            print_fn(
-                f"{n:>2}v{n:<2} train: {result.steps_per_s:>9,.0f} env steps/s "
-                f"({result.games} games x {result.episode_length} steps in "
-                f"{result.iteration_s:.2f} s, {result.epochs} epochs; compile "
-                f"{result.compile_s:.1f} s) | env {result.env_share:.1%}, forward "
-                f"{result.forward_share:.1%}, update {result.update_share:.1%} | host: "
-                f"matmul {result.host_matmul_gflops:.0f} GFLOP/s, weight gradient "
-                f"{result.host_weight_gradient_gflops:.0f} GFLOP/s, stream "
-                f"{result.host_stream_gbps:.0f} GB/s"
+        baseline: TrainBenchResult | None = None
+        for count in devices or (1,):
+            result = bench_train(
+                n, episode_length=episode_length, repeats=repeats, games=games or None,
+                devices=count, minibatch_games_multiple=multiple,
             )
+            if baseline is None:
+                baseline = result
+            else:
+                result = dataclasses.replace(
+                    result,
+                    scaling_efficiency=result.steps_per_s_per_device
+                    / baseline.steps_per_s_per_device,
+                )
+            results.append(result)
+            _print_result(result, json, print_fn)
     return results
 
+
+def _print_result(
+    result: TrainBenchResult, json: bool, print_fn: Callable[[str], None]
+) -> None:
+    n = result.players
+    if json:
+        print_fn(json_lib.dumps(asdict(result)))
+    elif result.devices > 1:
+        print_fn(
+            f"{n:>2}v{n:<2} train on {result.devices} devices: {result.steps_per_s:>9,.0f} env "
+            f"steps/s, {result.steps_per_s_per_device:,.0f} per device, scaling efficiency "
+            f"{result.scaling_efficiency:.2f} ({result.games} games x {result.episode_length} "
+            f"steps in {result.iteration_s:.2f} s; compile {result.compile_s:.1f} s)"
+        )
+    else:
+        print_fn(
+            f"{n:>2}v{n:<2} train: {result.steps_per_s:>9,.0f} env steps/s "
+            f"({result.games} games x {result.episode_length} steps in "
+            f"{result.iteration_s:.2f} s, {result.epochs} epochs; compile "
+            f"{result.compile_s:.1f} s) | env {result.env_share:.1%}, forward "
+            f"{result.forward_share:.1%}, update {result.update_share:.1%} | host: "
+            f"matmul {result.host_matmul_gflops:.0f} GFLOP/s, weight gradient "
+            f"{result.host_weight_gradient_gflops:.0f} GFLOP/s, stream "
+            f"{result.host_stream_gbps:.0f} GB/s"
+        )

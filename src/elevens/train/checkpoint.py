@@ -31,8 +31,9 @@ Why the layout looks like this:
 * **No pickle.** Arrays go through tensorstore, everything else is JSON.
 
 Saves are synchronous: the trainer saves between compiled chunks and a finished ``save`` means
-the checkpoint is on disk (what a Ctrl-C handler needs). Single process: leaves are fetched to
-the host with ``np.asarray``, which is fine for arrays on one host (replicated or single device).
+the checkpoint is on disk (what a Ctrl-C handler needs). Leaves are fetched to the host with
+``np.asarray``: arrays on one device, or replicated ones. Several processes (``jax.distributed``)
+all call ``save`` together and Orbax's multi-process path has process 0 write the files.
 """
 
 from __future__ import annotations
@@ -92,7 +93,9 @@ class _JsonTextHandler(ocp.CheckpointHandler):
         self._filename = filename
 
     def save(self, directory: Any, args: _JsonTextSave) -> None:
-        Path(os.fspath(directory), self._filename).write_text(args.text, encoding="utf-8")
+        # Every process of a multi-process run saves together; process 0 writes the files.
+        if jax.process_index() == 0:
+            Path(os.fspath(directory), self._filename).write_text(args.text, encoding="utf-8")
 
     def restore(self, directory: Any, args: _JsonTextRestore | None = None) -> Any:
         return _read_json(Path(os.fspath(directory), self._filename))
@@ -394,7 +397,8 @@ class Checkpointer:
             ]
         )
 
-        self.directory.mkdir(parents=True, exist_ok=True)
+        if jax.process_index() == 0:  # Orbax's manager makes the directory on process 0 too
+            self.directory.mkdir(parents=True, exist_ok=True)
         manager = self._get_manager()
         args = ocp.args.Composite(
             **{

@@ -61,6 +61,15 @@ class TrainArgs:
     resume_from_last_good: bool = False
     """With --resume: if the latest checkpoint is damaged, continue from the newest intact one
     (the damaged ones move to run_dir/damaged_checkpoints; nothing is deleted)."""
+    distributed: bool = False
+    """One run over several processes (hosts): calls jax.distributed.initialize(). Under SLURM
+    or Open MPI nothing else is needed; otherwise give the next three flags on every process."""
+    coordinator: str = ""
+    """With --distributed: HOST:PORT of process 0."""
+    num_processes: int = 0
+    """With --distributed: how many processes the run has."""
+    process_id: int = -1
+    """With --distributed: this process's number, 0 to num_processes - 1."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -75,6 +84,12 @@ class TrainBenchArgs:
     """Steps per episode (costs scale linearly with it; the rate barely depends on it)."""
     repeats: int = 3
     """Timed repeats; the median is reported."""
+    devices: tuple[int, ...] = ()
+    """Device counts to train on, e.g. 1 2 (with 2 host devices: XLA_FLAGS=
+    --xla_force_host_platform_device_count=2): steps per second per device and the scaling
+    efficiency against the first count. Empty: one run on the default device."""
+    games: int = 0
+    """Games per iteration (0: the preset's). Must be a multiple of every device count."""
 
 
 def train_command(args: TrainArgs) -> Any:
@@ -84,6 +99,16 @@ def train_command(args: TrainArgs) -> Any:
 
     try:
         config = args.config.validate()
+        given = args.coordinator or args.num_processes or args.process_id >= 0
+        if given and not args.distributed:
+            raise ValueError(
+                "--coordinator, --num-processes and --process-id need --distributed"
+            )
+        if args.distributed:
+            from elevens.train.parallel import initialize_distributed
+
+            # Before anything touches a device: every process joins the run first.
+            initialize_distributed(args.coordinator, args.num_processes, args.process_id)
     except ValueError as error:
         # A usage error like the ones tyro reports for a single field: no traceback, exit 2.
         exit_with_error("elevens train: error", error, 2)
@@ -122,17 +147,32 @@ def train_command(args: TrainArgs) -> Any:
 
 COMMAND_FLAGS = (
     "--resume", "--no-resume", "--progress", "--no-progress", "--resume-from-last-good",
-    "--no-resume-from-last-good",
+    "--no-resume-from-last-good", "--distributed", "--no-distributed",
 )
-"""TrainArgs' own flags; tyro takes them only before the preset."""
+"""TrainArgs' own switches; tyro takes them only before the preset."""
+COMMAND_VALUE_FLAGS = ("--coordinator", "--num-processes", "--process-id")
+"""TrainArgs' own flags that take a value (``--flag VALUE`` or ``--flag=VALUE``)."""
 
 
 def command_flags_first(args: Sequence[str]) -> list[str]:
-    """The arguments of `elevens train` with its own flags (``COMMAND_FLAGS``) moved in front
-    of the preset, so that ``elevens train 2v2 --resume`` works like ``elevens train --resume
-    2v2``. The order of everything else is kept."""
-    own = [arg for arg in args if arg in COMMAND_FLAGS]
-    return own + [arg for arg in args if arg not in COMMAND_FLAGS]
+    """The arguments of `elevens train` with its own flags (``COMMAND_FLAGS``,
+    ``COMMAND_VALUE_FLAGS`` with their values) moved in front of the preset, so that
+    ``elevens train 2v2 --resume`` works like ``elevens train --resume 2v2``. The order of
+    everything else is kept."""
+    own: list[str] = []
+    rest: list[str] = []
+    index = 0
+    while index < len(args):
+        arg = args[index]
+        if arg in COMMAND_FLAGS or arg.split("=", 1)[0] in COMMAND_VALUE_FLAGS and "=" in arg:
+            own.append(arg)
+        elif arg in COMMAND_VALUE_FLAGS:
+            own.extend(args[index : index + 2])
+            index += 1
+        else:
+            rest.append(arg)
+        index += 1
+    return own + rest
 
 
 def bench_train_command(args: TrainBenchArgs) -> Any:
@@ -141,5 +181,5 @@ def bench_train_command(args: TrainBenchArgs) -> Any:
 
     return run_train_bench(
         players=args.players, json=args.json, episode_length=args.episode_length,
-        repeats=args.repeats,
+        repeats=args.repeats, devices=args.devices, games=args.games,
     )

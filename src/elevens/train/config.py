@@ -221,6 +221,11 @@ class RunConfig:
     """Newest checkpoints kept on disk; older ones are deleted after a successful save."""
     seed: int = 0
     """Seed of the run: initial params, every game, every minibatch shuffle."""
+    devices: int = 0
+    """Devices the games of an iteration are split over (data parallel; parameters replicated):
+    0 = every device of every process (one on a plain CPU), N = the first N. The games per
+    iteration and per minibatch must be multiples of it. The result does not depend on it (to
+    float tolerance); a resume must use the same number."""
     init_from: str = ""
     """Start from another run's networks instead of random ones: a run, checkpoints or step
     directory (``PATH@ITERATION`` picks a checkpoint), trained at any team size; its network
@@ -763,6 +768,7 @@ def _validate_run(run: RunConfig) -> None:
     _int_at_least("run.checkpoint_every", run.checkpoint_every, 0)
     _int_at_least("run.keep_checkpoints", run.keep_checkpoints, 1)
     _require(_is_int(run.seed), f"run.seed={run.seed!r} is invalid: it must be an integer")
+    _int_at_least("run.devices", run.devices, 0)
     _require(
         isinstance(run.init_from, str),
         f"run.init_from={run.init_from!r} is invalid: it must be a checkpoint path or ''",

@@ -561,6 +561,7 @@ def update_epochs(
     num_minibatches: int,
     value_and_grad_fn: Callable[[PyTree, PyTree], tuple[tuple[jax.Array, Metrics], PyTree]]
     | None = None,
+    constrain_minibatches: Callable[[PyTree], PyTree] = lambda tree: tree,
 ) -> UpdateResult:
     """Run ``epochs`` passes over ``batch`` in shuffled minibatches (nested ``lax.scan``).
 
@@ -577,6 +578,8 @@ def update_epochs(
         num_minibatches: minibatches per epoch (11 in the thesis), static; must divide N.
         value_and_grad_fn: ``jax.value_and_grad(loss_fn, has_aux=True)`` computed another way,
             or None for exactly that (the trainer picks a cheaper policy pass per minibatch).
+        constrain_minibatches: applied to an epoch's ``[num_minibatches, N / num_minibatches,
+            ...]`` minibatches (the trainer splits each minibatch's units over its devices).
 
     Raises ``ValueError`` before tracing if ``num_minibatches`` does not divide N, or the leaves
     disagree on N. Jit this whole function with ``loss_fn``/``optimizer``/``epochs``/
@@ -596,7 +599,7 @@ def update_epochs(
         return _TrainCarry(params=params, opt_state=opt_state), stats
 
     def epoch_step(carry: _TrainCarry, epoch_key: jax.Array) -> tuple[_TrainCarry, _StepStats]:
-        minibatches = shuffle_minibatches(epoch_key, batch, num_minibatches)
+        minibatches = constrain_minibatches(shuffle_minibatches(epoch_key, batch, num_minibatches))
         return jax.lax.scan(minibatch_step, carry, minibatches)
 
     epoch_keys = jax.random.split(shuffle_key, epochs)

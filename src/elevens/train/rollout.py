@@ -20,6 +20,7 @@ sequences, games outermost (unit ``g * n + k`` is player ``k`` of game ``g``).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import jax
@@ -144,6 +145,7 @@ def rollout(
     num_games: int,
     num_steps: int,
     opponent_per_game: bool = False,
+    constrain_games: Callable[[Any], Any] = lambda tree: tree,
 ) -> Rollout:
     """Play ``num_games`` whole episodes of ``num_steps`` steps, learner against opponent.
 
@@ -159,6 +161,8 @@ def rollout(
         num_steps: T (static), the episode length: ``params.episode_length`` is a pytree leaf,
             so it cannot size the scan; pass the same number.
         opponent_per_game: whether ``opponent_params`` has the per-game axis (static).
+        constrain_games: applied to every array with a leading game axis that the step scan
+            carries (``elevens.train.parallel.game_constraint``: games split over devices).
 
     Both teams sample their actions from their tanh Gaussians. Jit this (or call it inside a jit)
     with ``env``, ``policy``, ``num_games`` and ``opponent_per_game`` static.
@@ -168,7 +172,7 @@ def rollout(
     side = jnp.asarray(learner_sides(num_games))
     reset_key, play_key = jax.random.split(key)
     states, _ = jax.vmap(env.reset, in_axes=(0, None))(
-        jax.random.split(reset_key, num_games), params
+        constrain_games(jax.random.split(reset_key, num_games)), params
     )
     observe = jax.vmap(env.observe, in_axes=(0, None))
     global_state = jax.vmap(env.global_state, in_axes=(0, None))
@@ -182,9 +186,11 @@ def rollout(
             return jax.vmap(policy.apply)(opponent_params, carry, obs, reset)
         return policy.apply(opponent_params, carry, obs, reset)
 
+    if opponent_per_game:
+        opponent_params = constrain_games(opponent_params)
     initial_carry = policy.initial_carry((num_games, n))
-    start = RolloutCarry(
-        state=states, learner_carry=initial_carry, opponent_carry=initial_carry
+    start = constrain_games(
+        RolloutCarry(state=states, learner_carry=initial_carry, opponent_carry=initial_carry)
     )
 
     def step(carry: RolloutCarry, step_keys: jax.Array) -> tuple[RolloutCarry, _StepRecord]:
@@ -222,7 +228,7 @@ def rollout(
         next_carry = RolloutCarry(
             state=state, learner_carry=learner_carry, opponent_carry=opponent_carry
         )
-        return next_carry, record
+        return constrain_games(next_carry), record
 
     # All keys of the episode in one draw (each threefry call is a loop of its own on CPU):
     # per step the learner's, the opponent's, and one per game for the env's respawns.

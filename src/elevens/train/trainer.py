@@ -37,6 +37,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+import signal
 import time
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -47,6 +48,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 from flax import struct
+from jax.sharding import Mesh
 
 from elevens.env.params import EnvParams
 from elevens.env.soccer import Soccer
@@ -56,7 +58,7 @@ from elevens.nets.attention import Capacity
 from elevens.nets.critic import AttentionCritic
 from elevens.nets.policy import AttentionPolicy, PolicyCarry, visible_capacity_index
 from elevens.train import opponents as opp
-from elevens.train import ppo
+from elevens.train import parallel, ppo
 from elevens.train.config import (
     RESUMABLE_FIELDS,
     RunConfig,
@@ -172,21 +174,24 @@ class Trainer:
     metrics: Callable[[Rollout, Learned, OpponentState, ShapingState, ShapingState], Metrics]
     """``metrics(rollout, learned, opponent, shaping_before, shaping_after)``: an iteration's
     ``train/``, ``env/`` and ``opponent/`` metrics (loops that play elsewhere log the same)."""
+    mesh: Mesh
+    """The devices the games are split over (``run.devices``); the state is replicated on it."""
 
     def update(self, state: TrainState, num_iterations: int) -> tuple[TrainState, Metrics]:
         if num_iterations == self.config.run.iterations_per_chunk:
             return self.update_chunk(state)
-        return _scan_iterations(self.iteration, num_iterations)(state)
+        return _scan_iterations(self.iteration, num_iterations, self.mesh)(state)
 
 
 @functools.lru_cache(maxsize=16)
 def _scan_iterations(
-    iteration: Callable[[TrainState], tuple[TrainState, Metrics]], num_iterations: int
+    iteration: Callable[[TrainState], tuple[TrainState, Metrics]], num_iterations: int,
+    mesh: Mesh,
 ) -> Callable[[TrainState], tuple[TrainState, Metrics]]:
     def run(state: TrainState) -> tuple[TrainState, Metrics]:
         return jax.lax.scan(lambda s, _: iteration(s), state, None, length=num_iterations)
 
-    return jax.jit(run)
+    return parallel.jit_replicated(run, mesh)
 
 
 def make_optimizer(config: TrainConfig) -> optax.GradientTransformation:
@@ -284,6 +289,11 @@ def _build_trainer(config: TrainConfig) -> Trainer:
     opponent_config = config.opponent
 
     initialize_networks = _network_initializer(policy, critic, n)
+    # Data parallel (elevens.train.parallel): games split over the mesh, the rest replicated.
+    mesh = parallel.data_mesh(run.devices)
+    _check_device_split(config, mesh)
+    shard_games = parallel.game_constraint(mesh)
+    shard_minibatch_games = parallel.game_constraint(mesh, game_axis=1)
 
     def init(key: jax.Array, start: LearnerParams | None = None) -> TrainState:
         policy_key, critic_key, run_key = jax.random.split(key, 3)
@@ -462,6 +472,7 @@ def _build_trainer(config: TrainConfig) -> Trainer:
             num_games=num_games,
             num_steps=env_config.episode_length,
             opponent_per_game=kind == "league",
+            constrain_games=shard_games,
         )
 
     def learn(
@@ -480,7 +491,7 @@ def _build_trainer(config: TrainConfig) -> Trainer:
         if hp.entropy_estimator == "squashed":
             shuffle_key, noise_key = jax.random.split(shuffle_key)
             entropy_noise = jax.random.normal(noise_key, t.pre_tanh.shape, t.pre_tanh.dtype)
-        batch = UpdateBatch(
+        batch = shard_games(UpdateBatch(
             obs=by_game(t.obs),
             global_state=data.game_global_state,
             pre_tanh=by_game(t.pre_tanh),
@@ -491,7 +502,7 @@ def _build_trainer(config: TrainConfig) -> Trainer:
             advantages=None if gae_advantages is None else by_game(gae_advantages),
             old_values=by_game(values) if hp.clip_value else None,
             entropy_noise=None if entropy_noise is None else by_game(entropy_noise),
-        )
+        ))
         # minibatch_size counts player sequences; validate() made it a multiple of n.
         update = ppo.update_epochs(
             loss_fn,
@@ -503,6 +514,7 @@ def _build_trainer(config: TrainConfig) -> Trainer:
             epochs=hp.epochs,
             num_minibatches=hp.num_minibatches,
             value_and_grad_fn=value_and_grad,
+            constrain_minibatches=shard_minibatch_games,
         )
         return Learned(update=update, values=values, returns=returns)
 
@@ -576,7 +588,6 @@ def _build_trainer(config: TrainConfig) -> Trainer:
 
     chunk = run.iterations_per_chunk
 
-    @jax.jit
     def update_chunk(state: TrainState) -> tuple[TrainState, Metrics]:
         return jax.lax.scan(lambda s, _: iteration(s), state, None, length=chunk)
 
@@ -590,11 +601,26 @@ def _build_trainer(config: TrainConfig) -> Trainer:
         # Not jitted as a whole: the networks' init is (and is shared, see
         # _network_initializer); the rest is a few zeros and copies.
         init=init,
-        update_chunk=update_chunk,
+        update_chunk=parallel.jit_replicated(update_chunk, mesh),
         iteration=iteration,
         collect=collect,
         learn=learn,
         metrics=iteration_metrics,
+        mesh=mesh,
+    )
+
+
+def _check_device_split(config: TrainConfig, mesh: Mesh) -> None:
+    """Every device plays an equal share of the games and of each minibatch's games."""
+    n = config.env.players_per_team
+    parallel.check_divisible(
+        "run.games_per_iteration", config.run.games_per_iteration, mesh,
+        "or choose the devices with --run.devices",
+    )
+    games = config.ppo.minibatch_size // n
+    parallel.check_divisible(
+        f"the games of a minibatch (ppo.minibatch_size={config.ppo.minibatch_size} / {n} "
+        "players)", games, mesh, "ppo.minibatch_size counts player sequences",
     )
 
 
@@ -735,6 +761,10 @@ def train(
     start_time = time.perf_counter()
     run = config.run
     run_dir = Path(run.run_dir)
+    # Several processes (--distributed) run this same loop in step; process 0 alone writes the
+    # run directory (checkpoints go through Orbax's multi-process path) and evaluates.
+    lead = parallel.is_lead()
+    processes = jax.process_count()
     checkpointer = Checkpointer(run_dir / CHECKPOINT_DIR, max_to_keep=run.keep_checkpoints)
     # A mixed run (env.mix) has one trainer per game size over the same TrainState; the
     # main scenario's evaluates, draws and shapes what is saved.
@@ -784,6 +814,13 @@ def train(
                     f"checkpoint {latest} is damaged ({damage}); resumed from checkpoint "
                     f"{step}, the damaged ones are in {run_dir / DAMAGED_DIR}"
                 )
+            saved_processes = int(meta.get("processes", 1))
+            if saved_processes != processes:
+                raise RunRefusedError(
+                    f"cannot resume {run_dir}: it was trained by {saved_processes} process(es) "
+                    f"and this run has {processes}; resume with --num-processes "
+                    f"{saved_processes} (the games are split over the processes' devices)"
+                )
             train_seconds = float(meta.get("train_seconds", 0.0))
             shaping_off_at = meta.get("shaping_off_iteration")
             env_steps = int(
@@ -793,8 +830,10 @@ def train(
         # Closed here, not left to the garbage collector with Orbax's background thread.
         checkpointer.close()
         raise
-    run_dir.mkdir(parents=True, exist_ok=True)
-    (run_dir / CONFIG_JSON).write_text(config.to_json(), encoding="utf-8")
+    if lead:
+        run_dir.mkdir(parents=True, exist_ok=True)
+        (run_dir / CONFIG_JSON).write_text(config.to_json(), encoding="utf-8")
+    state = parallel.replicate(state, trainer.mesh)
 
     iteration = int(state.iteration)
     last_saved = iteration if resuming else None
@@ -820,6 +859,7 @@ def train(
                 "env_steps": env_steps,
                 "train_seconds": train_seconds,
                 "shaping_off_iteration": shaping_off_at,
+                "processes": processes,
             },
         )
         last_saved = it
@@ -829,37 +869,47 @@ def train(
         nonlocal train_seconds
         began = time.perf_counter()
         it = int(current.iteration)
-        results = evaluate(trainer, current, jax.random.fold_in(eval_key, it))
+        results = evaluate(trainer, _local(current), jax.random.fold_in(eval_key, it))
         train_seconds += time.perf_counter() - began
         # The chunk before logged the time at this step; only the untrained baseline has none.
         time_rows = _time_metrics(env_steps, train_seconds) if it == 0 else {}
         logger.log(it, {**results, **time_rows})
         return results
 
-    logger = RunLogger(run_dir, resumed_at=iteration if resuming else None)
+    logger: Any = (
+        RunLogger(run_dir, resumed_at=iteration if resuming else None) if lead else _Silent()
+    )
     if fallback:
         logger.event(iteration, fallback)
-    bar = TrainProgress(
-        run.iterations,
-        metrics=PROGRESS_METRICS,
-        start=iteration,
-        start_env_steps=env_steps,
-        plain=None if progress else True,
-        plain_every=1 if progress else 10**9,
+    bar: Any = (
+        TrainProgress(
+            run.iterations,
+            metrics=PROGRESS_METRICS,
+            start=iteration,
+            start_env_steps=env_steps,
+            plain=None if progress else True,
+            plain_every=1 if progress else 10**9,
+        )
+        if lead
+        else _Silent()
     )
+    stop_signals = _StopSignals() if processes > 1 else None
     try:
         try:
-            if iteration == 0 and run.eval_every > 0:
-                # The untrained baseline: the learning curve starts at iteration 0.
+            if iteration == 0 and run.eval_every > 0 and lead:
+                # The baseline: the learning curve starts at iteration 0.
                 bar.note(
-                    f"evaluating the untrained networks against {', '.join(run.eval_teams)} "
-                    f"({run.eval_games} games each; the first match compiles)"
+                    f"evaluating the {'starting' if run.init_from else 'untrained'} networks "
+                    f"against {', '.join(run.eval_teams)} ({run.eval_games} games each; the "
+                    "first match compiles)"
                 )
                 evaluation = run_eval(state)
                 evaluated_at = 0
             compiled: set[str] = set()
             while iteration < run.iterations:
-                if train_seconds >= budget_s:
+                if stop_signals is not None and parallel.agree_any(stop_signals.requested):
+                    raise KeyboardInterrupt  # every process stops at this same iteration
+                if parallel.agree_any(train_seconds >= budget_s):
                     out_of_time = True
                     logger.event(
                         iteration,
@@ -904,7 +954,7 @@ def train(
                         logger.event(it, "reward shaping switched off for good")
                 train_seconds += chunk_seconds
                 shown = dict(rows[-1])
-                if _due(before, iteration, run.eval_every):
+                if _due(before, iteration, run.eval_every) and lead:
                     evaluation = run_eval(state)
                     evaluated_at = iteration
                 shown.update(evaluation)
@@ -921,17 +971,19 @@ def train(
                 iteration, f"interrupted (Ctrl-C or SIGTERM): checkpoint {checkpoint_path}"
             )
         files = {"metrics_csv": logger.csv_path, "config": run_dir / CONFIG_JSON}
-        if not interrupted and evaluated_at != iteration:
+        if not interrupted and evaluated_at != iteration and lead:
             evaluation = run_eval(state)
         logger.flush()
-        if run.write_plot:
+        if run.write_plot and lead:
             # Also after Ctrl-C: the curve so far is what a stopped run is checked by.
             files["learning_curve"] = write_learning_curve(
                 run_dir, run_dir / LEARNING_CURVE, title=_title(config)
             )
-        if not interrupted and run.write_gif:
-            files["gif"] = write_gif(trainer, state, run_dir / GIF_NAME, seed=run.seed)
+        if not interrupted and run.write_gif and lead:
+            files["gif"] = write_gif(trainer, _local(state), run_dir / GIF_NAME, seed=run.seed)
     finally:
+        if stop_signals is not None:
+            stop_signals.restore()
         bar.close()
         logger.close()
         checkpointer.close()
@@ -953,6 +1005,41 @@ def train(
 DAMAGED_DIR = "damaged_checkpoints"
 
 
+class _Silent:
+    """The logger and progress display of processes other than 0: they log nothing."""
+
+    csv_path = None
+
+    def __getattr__(self, name: str) -> Callable[..., None]:
+        return lambda *args, **kwargs: None
+
+
+class _StopSignals:
+    """Ctrl-C and SIGTERM as a flag while several processes train: each process checks it at
+    a chunk end and all stop together (an exception mid-chunk in one process would leave the
+    others waiting in a collective)."""
+
+    def __init__(self) -> None:
+        self.requested = False
+        self._previous = {
+            number: signal.signal(number, self._request)
+            for number in (signal.SIGINT, signal.SIGTERM)
+        }
+
+    def _request(self, signum: int, frame: Any) -> None:
+        self.requested = True
+
+    def restore(self) -> None:
+        for number, handler in self._previous.items():
+            signal.signal(number, handler)
+
+
+def _local(state: TrainState) -> TrainState:
+    """``state`` with its networks on the host: evaluation and the GIF play on this process's
+    own device, whatever mesh the state is replicated on."""
+    return state.replace(params=parallel.to_host(state.params))
+
+
 def _last_good_step(
     checkpointer: Any, target: TrainState, latest: int, damage: Exception, use_it: bool,
     run_dir: Path,
@@ -971,9 +1058,11 @@ def _last_good_step(
             f"pass --resume-from-last-good to continue from it (the damaged ones move to "
             f"{run_dir / DAMAGED_DIR}, nothing is deleted)"
         ) from damage
-    for step in checkpointer.all_steps():
-        if step > good:
-            checkpointer.set_aside(step, run_dir / DAMAGED_DIR)
+    if parallel.is_lead():
+        for step in checkpointer.all_steps():
+            if step > good:
+                checkpointer.set_aside(step, run_dir / DAMAGED_DIR)
+    parallel.barrier("elevens: damaged checkpoints set aside")
     return int(good)
 
 

@@ -145,11 +145,11 @@ def _median_time(run: Callable[[], Any], repeats: int) -> tuple[float, float]:
 
 def bench_train(
     players: int, episode_length: int = 100, repeats: int = 3, games: int | None = None,
-    devices: int = 1, minibatch_games_multiple: int = 1,
+    devices: int = 1, minibatch_games_multiple: int = 1, parts: bool = True,
 ) -> TrainBenchResult:
     """Time one training iteration of ``players`` a side and its parts (see the module doc).
-    With ``devices`` > 1 the games split over that many devices and only the whole iteration
-    is timed (the parts are NaN)."""
+    With ``devices`` > 1 the games split over that many devices; then, or without ``parts``,
+    only the whole iteration is timed (the parts are NaN)."""
     from elevens.train.trainer import make_trainer
 
     games = max(1, 660 // players) if games is None else games
@@ -186,7 +186,7 @@ def bench_train(
         return metrics
 
     compile_s, iteration_s = _median_time(full, repeats)
-    if devices > 1:
+    if devices > 1 or not parts:
         nan = float("nan")
         return TrainBenchResult(
             players=players, games=games, episode_length=episode_length,
@@ -244,14 +244,16 @@ def run_train_bench(
     repeats: int = 3,
     print_fn: Callable[[str], None] = print,
     devices: Sequence[int] = (),
-    games: int = 0,
+    games: int | None = None,
+    parts: bool = True,
 ) -> list[TrainBenchResult]:
     """Bench each team size; print a line (or, with ``json``, one JSON object) per size.
 
     The JSON objects hold ``players``, ``steps_per_s``, ``env_share``, ``forward_share`` and
     ``update_share``, with the other fields of ``TrainBenchResult``. ``devices``: train each
     size on each of these device counts in turn (the same games and minibatches), and report
-    the scaling efficiency against the first. ``games``: games per iteration (0: 660 / n).
+    the scaling efficiency against the first. ``games``: games per iteration (None: 660 / n).
+    ``parts``: also time the iteration's parts (see the module doc).
     """
     available = jax.device_count()
     for count in devices:
@@ -267,8 +269,8 @@ def run_train_bench(
         baseline: TrainBenchResult | None = None
         for count in devices or (1,):
             result = bench_train(
-                n, episode_length=episode_length, repeats=repeats, games=games or None,
-                devices=count, minibatch_games_multiple=multiple,
+                n, episode_length=episode_length, repeats=repeats, games=games,
+                devices=count, minibatch_games_multiple=multiple, parts=parts,
             )
             if baseline is None:
                 baseline = result
@@ -289,12 +291,16 @@ def _print_result(
     n = result.players
     if json:
         print_fn(json_lib.dumps(asdict(result)))
-    elif result.devices > 1:
+    elif result.devices > 1 or math.isnan(result.env_share):
+        scaling = (
+            "" if math.isnan(result.scaling_efficiency)
+            else f", scaling efficiency {result.scaling_efficiency:.2f}"
+        )
         print_fn(
-            f"{n:>2}v{n:<2} train on {result.devices} devices: {result.steps_per_s:>9,.0f} env "
-            f"steps/s, {result.steps_per_s_per_device:,.0f} per device, scaling efficiency "
-            f"{result.scaling_efficiency:.2f} ({result.games} games x {result.episode_length} "
-            f"steps in {result.iteration_s:.2f} s; compile {result.compile_s:.1f} s)"
+            f"{n:>2}v{n:<2} train on {result.devices} device(s): {result.steps_per_s:>9,.0f} "
+            f"env steps/s, {result.steps_per_s_per_device:,.0f} per device{scaling} "
+            f"({result.games} games x {result.episode_length} steps in "
+            f"{result.iteration_s:.2f} s; compile {result.compile_s:.1f} s)"
         )
     else:
         print_fn(

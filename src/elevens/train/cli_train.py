@@ -88,8 +88,11 @@ class TrainBenchArgs:
     """Device counts to train on, e.g. 1 2 (with 2 host devices: XLA_FLAGS=
     --xla_force_host_platform_device_count=2): steps per second per device and the scaling
     efficiency against the first count. Empty: one run on the default device."""
-    games: int = 0
-    """Games per iteration (0: the preset's). Must be a multiple of every device count."""
+    games: int | None = None
+    """Games per iteration (default 660 / players: table 6.1's batch). Must be a multiple of
+    every device count."""
+    parts: bool = True
+    """Also time the rollout, the update and the env alone (three more compiles)."""
 
 
 def train_command(args: TrainArgs) -> Any:
@@ -182,4 +185,5 @@ def bench_train_command(args: TrainBenchArgs) -> Any:
     return run_train_bench(
         players=args.players, json=args.json, episode_length=args.episode_length,
         repeats=args.repeats, devices=args.devices, games=args.games,
+        parts=args.parts,
     )

@@ -146,6 +146,7 @@ def _median_time(run: Callable[[], Any], repeats: int) -> tuple[float, float]:
 def bench_train(
     players: int, episode_length: int = 100, repeats: int = 3, games: int | None = None,
     devices: int = 1, minibatch_games_multiple: int = 1, parts: bool = True,
+    minibatch_size: int | None = None,
 ) -> TrainBenchResult:
     """Time one training iteration of ``players`` a side and its parts (see the module doc).
     With ``devices`` > 1 the games split over that many devices; then, or without ``parts``,
@@ -165,6 +166,14 @@ def bench_train(
             f"{minibatch_games_multiple} games"
         )
     minibatch = min(fits, key=lambda m: abs(m - 60))
+    if minibatch_size is not None:
+        if minibatch_size not in fits:
+            raise ValueError(
+                f"--minibatch-size={minibatch_size} is invalid with {games} games of {players} "
+                f"players: it must divide the batch of {units} sequences in whole games, a "
+                f"multiple of {step} (e.g. {fits[len(fits) // 2]})"
+            )
+        minibatch = minibatch_size
     config = make_config(
         "11v11" if players == 11 else "2v2",
         **{
@@ -246,6 +255,7 @@ def run_train_bench(
     devices: Sequence[int] = (),
     games: int | None = None,
     parts: bool = True,
+    minibatch_size: int | None = None,
 ) -> list[TrainBenchResult]:
     """Bench each team size; print a line (or, with ``json``, one JSON object) per size.
 
@@ -271,6 +281,7 @@ def run_train_bench(
             result = bench_train(
                 n, episode_length=episode_length, repeats=repeats, games=games,
                 devices=count, minibatch_games_multiple=multiple, parts=parts,
+                minibatch_size=minibatch_size,
             )
             if baseline is None:
                 baseline = result

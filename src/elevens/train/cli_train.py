@@ -91,6 +91,9 @@ class TrainBenchArgs:
     games: int | None = None
     """Games per iteration (default 660 / players: table 6.1's batch). Must be a multiple of
     every device count."""
+    minibatch_size: int | None = None
+    """Player sequences per minibatch (default: about table 6.1's 60, in whole games). A larger
+    one means fewer sequential optimiser steps per iteration: what a GPU needs."""
     parts: bool = True
     """Also time the rollout, the update and the env alone (three more compiles)."""
 
@@ -185,5 +188,5 @@ def bench_train_command(args: TrainBenchArgs) -> Any:
     return run_train_bench(
         players=args.players, json=args.json, episode_length=args.episode_length,
         repeats=args.repeats, devices=args.devices, games=args.games,
-        parts=args.parts,
+        parts=args.parts, minibatch_size=args.minibatch_size,
     )

@@ -970,7 +970,7 @@ def train(
             logger.event(
                 iteration, f"interrupted (Ctrl-C or SIGTERM): checkpoint {checkpoint_path}"
             )
-        files = {"metrics_csv": logger.csv_path, "config": run_dir / CONFIG_JSON}
+        files = {"metrics_csv": logger.csv_path, "config": run_dir / CONFIG_JSON} if lead else {}
         if not interrupted and evaluated_at != iteration and lead:
             evaluation = run_eval(state)
         logger.flush()

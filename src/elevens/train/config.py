@@ -186,6 +186,14 @@ class OpponentConfig:
     """A snapshot's win rate is held at 0.5 until it has played this many games (5.2.7: 100)."""
     league_window: int = LEAGUE_WINDOW
     """Games per snapshot its win rate is averaged over (section 5.2.7: the past 1000)."""
+    mix: tuple[str, ...] = ()
+    """Fixed opponents beside self-play, ``TEAM=SHARE`` each: TEAM is any team spec of
+    ``elevens tournament`` (naive, teamwork, random, a shipped team, a run or checkpoint
+    ``PATH[@ITERATION]``, an exported folder) and SHARE its share of each iteration's games.
+    ``self=SHARE`` sets the share of ``kind`` (default: the rest; ``self=0`` trains against the
+    fixed teams alone). E.g. ``('self=0.8', 'naive=0.1', 'runs/x=0.1')``. The fixed teams'
+    games train the learner like the others; the opponent's own updates (the Polyak freeze,
+    the league's win rates) read the self-play games only."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -565,6 +573,7 @@ def validate(config: TrainConfig) -> None:
     _validate_ppo(config)
     _validate_opponent(config.opponent)
     _validate_mix(config)
+    _validate_opponent_mix(config)
 
 
 def _validate_env(env: EnvConfig) -> None:
@@ -657,6 +666,30 @@ def _validate_mix(config: TrainConfig) -> None:
         "env.mix is invalid with network.use_attention=False: the feedforward network's first "
         "layer fits one team size",
     )
+
+
+SELF = "self"
+"""The name of the self-play opponent (``opponent.kind``) in ``opponent.mix``."""
+
+
+def opponent_mix(config: TrainConfig) -> list[tuple[str, int]]:
+    """``opponent.mix`` as (team spec, games an iteration), self-play (``SELF``) first, then the
+    fixed teams in their order; every game has one opponent. Self-play may have 0 games."""
+    games = config.run.games_per_iteration
+    entries = [_mix_entry(entry) for entry in config.opponent.mix]
+    fixed = [(spec, share) for spec, share in entries if spec != SELF]
+    counts = [(spec, round(share * games)) for spec, share in fixed]
+    return [(SELF, games - sum(count for _, count in counts)), *counts]
+
+
+def self_play_games(config: TrainConfig) -> int:
+    """Games an iteration against ``opponent.kind`` (all of them without ``opponent.mix``)."""
+    return opponent_mix(config)[0][1]
+
+
+def _mix_entry(entry: str) -> tuple[str, float]:
+    spec, _, share = entry.rpartition("=")
+    return spec, float(share)
 
 
 def scenario_config(config: TrainConfig, scenario: str) -> TrainConfig:
@@ -752,6 +785,65 @@ def _validate_opponent(opponent: OpponentConfig) -> None:
     )
     _int_at_least("opponent.league_min_games", opponent.league_min_games, 0)
     _int_at_least("opponent.league_window", opponent.league_window, 1)
+    _require(
+        isinstance(opponent.mix, tuple), f"opponent.mix={opponent.mix!r} must be a tuple"
+    )
+
+
+def _validate_opponent_mix(config: TrainConfig) -> None:
+    mix = config.opponent.mix
+    if not mix:
+        return
+    form = (
+        "give TEAM=SHARE entries (TEAM a team spec or 'self', SHARE in [0, 1]), e.g. "
+        "'self=0.8 naive=0.1 runs/x=0.1'"
+    )
+    entries = []
+    for entry in mix:
+        spec, equals, share = entry.rpartition("=") if isinstance(entry, str) else ("", "", "")
+        try:
+            value = float(share)
+        except ValueError:
+            value = math.nan
+        _require(
+            bool(equals) and bool(spec) and math.isfinite(value) and 0 <= value <= 1,
+            f"opponent.mix entry {entry!r} is invalid: {form}",
+        )
+        entries.append((spec, value))
+    specs = [spec for spec, _ in entries]
+    _require(
+        len(set(specs)) == len(specs), f"opponent.mix={mix!r} is invalid: a team appears twice"
+    )
+    total = sum(value for _, value in entries)
+    explicit_self = SELF in specs
+    _require(
+        math.isclose(total, 1.0, abs_tol=1e-9) if explicit_self else total < 1 + 1e-9,
+        f"opponent.mix={mix!r} is invalid: the shares sum to {total:g}; with 'self=...' they "
+        "must sum to 1, without it to at most 1 (self-play plays the rest)",
+    )
+    games = config.run.games_per_iteration
+    for spec, value in entries:
+        count = round(value * games)
+        _require(
+            spec == SELF or count >= 1,
+            f"opponent.mix entry {spec}={value:g} is invalid with run.games_per_iteration="
+            f"{games}: it gives {value * games:g} games, round to at least 1",
+        )
+    self_games = self_play_games(config)
+    _require(
+        self_games >= 0,
+        f"opponent.mix={mix!r} is invalid with run.games_per_iteration={games}: the rounded "
+        "games of the fixed teams exceed the games of an iteration",
+    )
+    _require(
+        self_games > 0 or config.opponent.kind != "league",
+        "opponent.mix without self-play is invalid with opponent.kind='league': the league "
+        "learns from its own games",
+    )
+    _require(
+        not config.env.mix,
+        "opponent.mix is invalid with env.mix: mixed sizes play one opponent per chunk",
+    )
 
 
 def _validate_run(run: RunConfig) -> None:

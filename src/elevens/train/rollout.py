@@ -20,6 +20,7 @@ sequences, games outermost (unit ``g * n + k`` is player ``k`` of game ``g``).
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from typing import Any
 
@@ -32,6 +33,7 @@ from elevens.env.params import EnvParams
 from elevens.env.soccer import Soccer
 from elevens.env.state import GlobalState, Observation, State
 from elevens.nets.policy import AttentionPolicy, PolicyCarry
+from elevens.teams.base import TeamPolicy
 
 Params = Any
 
@@ -74,12 +76,24 @@ class Rollout:
     approach_shaping: jax.Array  # f32[G] sum over steps of w_a * a, mean over the n players
 
 
+@dataclasses.dataclass(frozen=True)
+class FixedOpponent:
+    """A team that plays ``games`` games of every iteration and does not learn
+    (``opponent.mix``): a handcrafted team or a frozen network behind ``TeamPolicy``."""
+
+    policy: TeamPolicy
+    params: Any
+    """The policy's params (None for the handcrafted teams); constants of the compiled rollout."""
+    games: int
+
+
 class RolloutCarry(struct.PyTreeNode):
     """What the step scan carries: the games and both teams' memories."""
 
     state: State  # leading [G]
     learner_carry: PolicyCarry  # leaves f32[G, n, lstm_features]
-    opponent_carry: PolicyCarry  # leaves f32[G, n, lstm_features]
+    opponent_carry: PolicyCarry  # leaves f32[G_self, n, lstm_features]: the self-play games
+    fixed_carries: tuple[Any, ...] = ()  # each fixed opponent's memory, leading [its games]
 
 
 class _StepRecord(struct.PyTreeNode):
@@ -146,6 +160,7 @@ def rollout(
     num_steps: int,
     opponent_per_game: bool = False,
     constrain_games: Callable[[Any], Any] = lambda tree: tree,
+    fixed_opponents: tuple[FixedOpponent, ...] = (),
 ) -> Rollout:
     """Play ``num_games`` whole episodes of ``num_steps`` steps, learner against opponent.
 
@@ -163,13 +178,19 @@ def rollout(
         opponent_per_game: whether ``opponent_params`` has the per-game axis (static).
         constrain_games: applied to every array with a leading game axis that the step scan
             carries (``elevens.train.parallel.game_constraint``: games split over devices).
+        fixed_opponents: teams that play the last games instead of the opponent of
+            ``opponent_params``, in blocks of their ``games`` in this order; the first G_self =
+            G - (their games) games are self-play, and ``opponent_params`` (per game: leading
+            [G_self]) play those. The learner plays both sides in every block.
 
     Both teams sample their actions from their tanh Gaussians. Jit this (or call it inside a jit)
     with ``env``, ``policy``, ``num_games`` and ``opponent_per_game`` static.
     """
     n = env.players_per_team
     steps = num_steps
-    side = jnp.asarray(learner_sides(num_games))
+    self_games = num_games - sum(opponent.games for opponent in fixed_opponents)
+    blocks = (self_games, *(opponent.games for opponent in fixed_opponents))
+    side = jnp.asarray(np.concatenate([learner_sides(games) for games in blocks]))
     reset_key, play_key = jax.random.split(key)
     states, _ = jax.vmap(env.reset, in_axes=(0, None))(
         constrain_games(jax.random.split(reset_key, num_games)), params
@@ -189,9 +210,52 @@ def rollout(
     if opponent_per_game:
         opponent_params = constrain_games(opponent_params)
     initial_carry = policy.initial_carry((num_games, n))
-    start = constrain_games(
-        RolloutCarry(state=states, learner_carry=initial_carry, opponent_carry=initial_carry)
+    fixed_carries = tuple(
+        jax.tree.map(
+            lambda leaf, games=opponent.games: jnp.broadcast_to(leaf, (games, *leaf.shape)),
+            opponent.policy.init_carry(n),
+        )
+        for opponent in fixed_opponents
     )
+    start = constrain_games(
+        RolloutCarry(
+            state=states,
+            learner_carry=initial_carry,
+            opponent_carry=policy.initial_carry((self_games, n)),
+            fixed_carries=fixed_carries,
+        )
+    )
+
+    def opponent_actions(
+        carry: RolloutCarry, obs: Observation, reset: jax.Array, key: jax.Array
+    ) -> tuple[PolicyCarry, tuple[Any, ...], jax.Array]:
+        """Every game's opponent: self-play in the first G_self games, then each fixed team
+        on its block. -> (self-play memory, fixed memories, actions f32[G, n, 2])."""
+        if not fixed_opponents:
+            opponent_carry, out = opponent_forward(carry.opponent_carry, obs, reset)
+            return opponent_carry, (), out.distribution().sample(key).action
+        actions = []
+        opponent_carry = carry.opponent_carry
+        if self_games:
+            opponent_carry, out = opponent_forward(
+                carry.opponent_carry,
+                jax.tree.map(lambda x: x[:self_games], obs),
+                reset[:self_games],
+            )
+            actions.append(out.distribution().sample(key).action)
+        fixed = []
+        begin = self_games
+        for index, opponent in enumerate(fixed_opponents):
+            end = begin + opponent.games
+            keys = jax.random.split(jax.random.fold_in(key, index + 1), opponent.games)
+            memory, action = jax.vmap(opponent.policy.act, in_axes=(None, 0, 0, 0))(
+                opponent.params, carry.fixed_carries[index],
+                jax.tree.map(lambda x, b=begin, e=end: x[b:e], obs), keys,
+            )
+            fixed.append(memory)
+            actions.append(action)
+            begin = end
+        return opponent_carry, tuple(fixed), jnp.concatenate(actions, axis=0)
 
     def step(carry: RolloutCarry, step_keys: jax.Array) -> tuple[RolloutCarry, _StepRecord]:
         learner_key, opponent_key, env_keys = step_keys[0], step_keys[1], step_keys[2:]
@@ -205,10 +269,9 @@ def rollout(
         learner_carry, learner_out = learner_forward(carry.learner_carry, learner_obs, player_reset)
         learner_sample = learner_out.distribution().sample(learner_key)
         log_prob = learner_out.distribution().log_prob(learner_sample.pre_tanh)
-        opponent_carry, opponent_out = opponent_forward(
-            carry.opponent_carry, opponent_obs, player_reset
+        opponent_carry, fixed_carries, opponent_action = opponent_actions(
+            carry, opponent_obs, player_reset, opponent_key
         )
-        opponent_action = opponent_out.distribution().sample(opponent_key).action
 
         actions = _place_sides(learner_sample.action, opponent_action, side)  # [G, 2, n, 2]
         state, rewards, done, info = transition(env_keys, carry.state, actions, params)
@@ -226,7 +289,10 @@ def rollout(
             approach_shaping=_pick_side(info.approach_shaping, side),
         )
         next_carry = RolloutCarry(
-            state=state, learner_carry=learner_carry, opponent_carry=opponent_carry
+            state=state,
+            learner_carry=learner_carry,
+            opponent_carry=opponent_carry,
+            fixed_carries=fixed_carries,
         )
         return constrain_games(next_carry), record
 

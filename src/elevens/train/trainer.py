@@ -37,6 +37,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+import re
 import signal
 import time
 from collections.abc import Callable, Mapping
@@ -65,10 +66,12 @@ from elevens.train.config import (
     TrainConfig,
     config_differences,
     mix_schedule,
+    opponent_mix,
     scenario_config,
+    self_play_games,
     validate,
 )
-from elevens.train.rollout import Rollout, rollout
+from elevens.train.rollout import FixedOpponent, Rollout, rollout
 from elevens.train.shaping import (
     ShapingState,
     shaping_init,
@@ -287,6 +290,8 @@ def _build_trainer(config: TrainConfig) -> Trainer:
     num_games = run.games_per_iteration
     kind = config.opponent.kind
     opponent_config = config.opponent
+    fixed_opponents = _fixed_opponents(config, env_params)
+    self_games = self_play_games(config)  # the games against `kind`; the rest are fixed teams
 
     initialize_networks = _network_initializer(policy, critic, n)
     # Data parallel (elevens.train.parallel): games split over the mesh, the rest replicated.
@@ -310,13 +315,13 @@ def _build_trainer(config: TrainConfig) -> Trainer:
                 league=opp.league_init(
                     policy_params, opponent_config.league_capacity, opponent_config.league_window
                 ),
-                indices=jnp.zeros((num_games,), jnp.int32),
+                indices=jnp.zeros((_index_count(config),), jnp.int32),
             )
         else:
             opponent = OpponentState(
                 polyak=opp.polyak_init(policy_params),
                 league=None,
-                indices=jnp.zeros((num_games,), jnp.int32),
+                indices=jnp.zeros((_index_count(config),), jnp.int32),
             )
         return TrainState(
             params=params,
@@ -409,8 +414,11 @@ def _build_trainer(config: TrainConfig) -> Trainer:
         state: TrainState, policy_params: Params, outcomes: jax.Array, key: jax.Array
     ) -> OpponentState:
         opponent = state.opponent
+        outcomes = outcomes[:self_games]  # the fixed teams' games tell nothing about it
         if kind in ("polyak", "self"):
             assert opponent.polyak is not None
+            if self_games == 0:
+                return opponent
             polyak = opp.single_opponent_step(
                 opponent.polyak,
                 kind,
@@ -430,7 +438,7 @@ def _build_trainer(config: TrainConfig) -> Trainer:
             opponent_config.league_min_games,
         )
         indices = opp.league_sample(
-            league, key, num_games, opponent_config.league_psi, opponent_config.league_min_games
+            league, key, self_games, opponent_config.league_psi, opponent_config.league_min_games
         )
         return opponent.replace(league=league, indices=indices)
 
@@ -450,6 +458,20 @@ def _build_trainer(config: TrainConfig) -> Trainer:
             / jnp.maximum(league.size, 1).astype(jnp.float32),
             "opponent/league_max_win_rate": jnp.max(jnp.where(live, rates, 0.0)),
         }
+
+    mix = opponent_mix(config)
+
+    def mix_metrics(outcomes: jax.Array) -> Metrics:
+        """With ``opponent.mix``: the learner's mean outcome against each opponent."""
+        if not fixed_opponents:
+            return {}
+        metrics, begin = {}, 0
+        for spec, games in mix:
+            if games:
+                label = _metric_label(spec)
+                metrics[f"opponent/{label}/outcome"] = jnp.mean(outcomes[begin : begin + games])
+            begin += games
+        return metrics
 
     def collect(state: TrainState, rollout_key: jax.Array) -> Rollout:
         """Algorithm 4 lines 4-11: one episode of every game, shaping as currently in force."""
@@ -473,6 +495,7 @@ def _build_trainer(config: TrainConfig) -> Trainer:
             num_steps=env_config.episode_length,
             opponent_per_game=kind == "league",
             constrain_games=shard_games,
+            fixed_opponents=fixed_opponents,
         )
 
     def learn(
@@ -559,6 +582,7 @@ def _build_trainer(config: TrainConfig) -> Trainer:
             ),
             "env/scoring_rate": shaping_scoring_rate(shaping_after),
             **opponent_metrics(opponent),
+            **mix_metrics(outcomes),
         }
         return {name: jnp.asarray(v, jnp.float32) for name, v in metrics.items()}
 
@@ -608,6 +632,33 @@ def _build_trainer(config: TrainConfig) -> Trainer:
         metrics=iteration_metrics,
         mesh=mesh,
     )
+
+
+def _fixed_opponents(config: TrainConfig, env_params: EnvParams) -> tuple[FixedOpponent, ...]:
+    """The teams of ``opponent.mix`` (not self-play), loaded once per trainer."""
+    from elevens.eval.teams import check_team_size, fit_to_field, load_team
+
+    n = config.env.players_per_team
+    fixed = []
+    for spec, games in opponent_mix(config)[1:]:
+        try:
+            team = fit_to_field(load_team(spec), env_params)
+            check_team_size(team, n)
+        except (ValueError, FileNotFoundError) as error:
+            raise ValueError(f"opponent.mix team {spec!r}: {error}") from error
+        fixed.append(FixedOpponent(policy=team.policy, params=team.params, games=games))
+    return tuple(fixed)
+
+
+def _index_count(config: TrainConfig) -> int:
+    """Length of ``OpponentState.indices``: one per self-play game, and at least one (a
+    checkpoint cannot hold an empty array; without self-play nothing reads it)."""
+    return max(self_play_games(config), 1)
+
+
+def _metric_label(spec: str) -> str:
+    """A team spec as a metric name's part: 'runs/x@30' -> 'runs_x@30'."""
+    return re.sub(r"[^A-Za-z0-9_.@=-]+", "_", spec).strip("_") or "team"
 
 
 def _check_device_split(config: TrainConfig, mesh: Mesh) -> None:
@@ -1069,7 +1120,7 @@ def _last_good_step(
 def _with_games(state: TrainState, config: TrainConfig) -> TrainState:
     """``state`` with the per-game opponent indices of ``config``'s games per iteration (a mixed
     run's sizes differ in games; the indices are zeros for the opponents a mix allows)."""
-    games = config.run.games_per_iteration
+    games = _index_count(config)
     if state.opponent.indices.shape == (games,):
         return state
     return state.replace(opponent=state.opponent.replace(indices=jnp.zeros((games,), jnp.int32)))

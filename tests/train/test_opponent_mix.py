@@ -89,3 +89,18 @@ def test_a_league_needs_self_play_and_an_unknown_team_is_named() -> None:
     assert self_play_games(tiny_config(**{"opponent.mix": ("naive=0.25",)})) == 48
     with pytest.raises(ValueError, match="opponent.mix team .nobody.: team spec: nobody does not"):
         make_trainer(make_config("quickstart", **{"opponent.mix": ("nobody=0.5",)}))
+
+
+def test_evaluation_tracks_a_trained_team_and_refuses_an_unknown_one(tmp_path: Path) -> None:
+    from elevens.train.trainer import evaluate
+
+    trainer = make_trainer(tiny_config())
+    state = trainer.init(jax.random.key(0))
+    results = evaluate(trainer, state, jax.random.key(1), teams=("elevens-2v2", "naive"),
+                       num_games=4)
+    assert {"eval/elevens-2v2/outcome", "eval/naive/outcome"} <= set(results)
+    assert 0.0 <= results["eval/elevens-2v2/outcome"] <= 1.0
+    # Refused before anything compiles, naming the field and the spec.
+    with pytest.raises(ValueError, match="run.eval_teams team 'runs/none': team spec"):
+        train(tiny_config(tmp_path / "run", **{"run.eval_teams": ("naive", "runs/none")}))
+    assert not (tmp_path / "run").exists()

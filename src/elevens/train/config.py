@@ -218,7 +218,9 @@ class RunConfig:
     eval_games: int = 100
     """Games per handcrafted team per evaluation (half on each side)."""
     eval_teams: tuple[str, ...] = EVAL_TEAMS
-    """Handcrafted teams to evaluate against (thesis 6.1: random, naive, teamwork)."""
+    """Teams to evaluate against (thesis 6.1: random, naive, teamwork): handcrafted teams or any
+    team spec, e.g. a shipped team or a checkpoint ``runs/x@300`` (figure 6.4's fourth line).
+    A spec that does not load stops the run before anything compiles."""
     eval_deterministic: bool = False
     """False: the learner samples its actions in evaluation, as it does in training and as the
     thesis' executors did; True: it plays the mean action tanh(mean)."""
@@ -865,11 +867,14 @@ def _validate_run(run: RunConfig) -> None:
         isinstance(run.init_from, str),
         f"run.init_from={run.init_from!r} is invalid: it must be a checkpoint path or ''",
     )
-    unknown = [team for team in run.eval_teams if team not in EVAL_TEAMS]
+    malformed = [
+        team for team in run.eval_teams
+        if not isinstance(team, str) or not team or team != team.strip()
+    ] if isinstance(run.eval_teams, tuple) else [run.eval_teams]
     _require(
-        isinstance(run.eval_teams, tuple) and not unknown,
-        f"run.eval_teams={run.eval_teams!r} is invalid: allowed teams are "
-        f"{', '.join(EVAL_TEAMS)}",
+        not malformed and len(set(run.eval_teams)) == len(run.eval_teams),
+        f"run.eval_teams={run.eval_teams!r} is invalid: give distinct team specs ("
+        f"{', '.join(EVAL_TEAMS)}, a shipped team, a run or checkpoint PATH[@ITERATION])",
     )
     _require(
         isinstance(run.run_dir, str) and run.run_dir != "",

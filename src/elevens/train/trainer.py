@@ -54,7 +54,7 @@ from jax.sharding import Mesh
 from elevens.env.params import EnvParams
 from elevens.env.soccer import Soccer
 from elevens.env.state import GlobalState, Observation
-from elevens.eval.play import resolve_team
+from elevens.eval.play import HANDCRAFTED, resolve_team
 from elevens.nets.attention import Capacity
 from elevens.nets.critic import AttentionCritic
 from elevens.nets.policy import AttentionPolicy, PolicyCarry, visible_capacity_index
@@ -733,12 +733,14 @@ def evaluate(
     trainer: Trainer, state: TrainState, key: jax.Array, teams: tuple[str, ...] | None = None,
     num_games: int | None = None,
 ) -> dict[str, float]:
-    """Play the learner (a NetworkTeam) against each handcrafted team with ``play_match``.
+    """Play the learner (a NetworkTeam) against each team with ``play_match``: handcrafted
+    teams by name, or any team spec (a shipped team, a run or checkpoint, an exported folder).
 
-    Returns ``eval/<team>/outcome`` (mean outcome from the learner's view: win 1, draw 0.5,
-    loss 0), ``/win``, ``/draw``, ``/loss``, ``/goals_for`` and ``/goals_against``. Games use
-    the training env's params with shaping as configured (shaping does not change the score);
-    the learner plays each side in half of them.
+    Returns ``eval/<team>/outcome`` (``<team>``: the spec, ``/`` made ``_``; the mean outcome
+    from the learner's view: win 1, draw 0.5, loss 0), ``/win``, ``/draw``, ``/loss``,
+    ``/goals_for`` and ``/goals_against``. Games use the training env's params with shaping as
+    configured (shaping does not change the score); the learner plays each side in half of
+    them.
     """
     from elevens.eval.match import play_match, summary
     from elevens.nets.team import NetworkTeam
@@ -751,15 +753,37 @@ def evaluate(
     )
     results: dict[str, float] = {}
     for index, name in enumerate(teams):
+        opponent, opponent_params = evaluation_team(name, trainer.env_params)
         result = play_match(
-            trainer.env, trainer.env_params, learner, resolve_team(name, trainer.env_params),
+            trainer.env, trainer.env_params, learner, opponent,
             jax.random.fold_in(key, index), num_games, home_params=state.params.policy,
+            away_params=opponent_params,
         )
         numbers = summary(result)
-        results[f"eval/{name}/outcome"] = numbers["mean"]
+        label = _metric_label(name)
+        results[f"eval/{label}/outcome"] = numbers["mean"]
         for field in ("win", "draw", "loss", "goals_for", "goals_against"):
-            results[f"eval/{name}/{field}"] = numbers[field]
+            results[f"eval/{label}/{field}"] = numbers[field]
     return results
+
+
+def evaluation_team(spec: str, env_params: EnvParams) -> tuple[Any, Any]:
+    """(TeamPolicy, params) of an evaluation opponent: a handcrafted team told the field, or
+    a trained team loaded once per process (figure 6.4's line against a checkpoint)."""
+    if spec in HANDCRAFTED:
+        return resolve_team(spec, env_params), None
+    return _load_trained_opponent(spec)
+
+
+@functools.lru_cache(maxsize=8)
+def _load_trained_opponent(spec: str) -> tuple[Any, Any]:
+    from elevens.eval.teams import load_team
+
+    try:
+        team = load_team(spec)
+    except (ValueError, FileNotFoundError) as error:
+        raise ValueError(f"run.eval_teams team {spec!r}: {error}") from error
+    return team.policy, team.params
 
 
 def _host_metrics(metrics: Metrics) -> list[dict[str, float]]:
@@ -840,6 +864,8 @@ def train(
                 check_resumable(checkpointer, config)
             except CheckpointError as error:  # its config.json: an earlier one may serve
                 damage = error
+        for team in run.eval_teams:  # a bad spec fails here, before anything compiles
+            evaluation_team(team, config.env.env_params())
         start = None
         if run.init_from and not resuming:
             _, start = load_start_params(run.init_from, config)

@@ -170,6 +170,7 @@ def main(argv: list[str] | None = None) -> None:
     Exit status: 0 done, 2 bad input (one line on stderr), 130 interrupted, 1 anything else
     (with its traceback). ``--debug`` anywhere shows the traceback of bad input too.
     """
+    from_command_line = argv is None
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv
     argv = [arg for arg in argv if arg != "--debug"]
@@ -183,6 +184,12 @@ def main(argv: list[str] | None = None) -> None:
     if name.startswith(("bench-", "robocup-")):
         name = name.replace("-", " ", 1)
     command = f"elevens {name}".rstrip()
+    starts_a_server = isinstance(args, RoboCupPlayArgs | RoboCupTrainArgs | RoboCupBenchArgs)
+    if from_command_line and starts_a_server:
+        from elevens.robocup.isolation import enter_private_network
+
+        # rcssserver listens on every interface: the command goes on in a network of its own.
+        enter_private_network(command)
     # SIGTERM (kill, a job scheduler) takes Ctrl-C's path: a training run (simulator or
     # RoboCup) writes its checkpoint, and every rcssserver a command started is stopped.
     # SIGKILL cannot be caught.

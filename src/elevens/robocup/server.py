@@ -8,8 +8,9 @@ file the server creates stays there) and sends its stdout/stderr to a log file w
 last lines are quoted when the server dies.
 
 The server binds its ports on all interfaces (rcssserver has no option to choose the
-address); run it inside a network namespace or container without a network to keep it
-off the network.
+address). ``elevens robocup play|train|bench`` therefore run in a private network namespace
+where the platform allows it (``elevens.robocup.isolation``); code that starts servers itself
+should run inside a network namespace or a container without a network.
 """
 
 from __future__ import annotations

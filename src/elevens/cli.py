@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
 import os
 import signal
 import sys
@@ -179,11 +181,11 @@ def main(argv: list[str] | None = None) -> None:
         argv = [f"{argv[0]}-{argv[1]}", *argv[2:]]
     if argv and argv[0] == "train":
         argv = ["train", *command_flags_first(argv[1:])]
-    args = tyro.cli(Command, args=argv, prog="elevens")
     name = argv[0] if argv else ""
     if name.startswith(("bench-", "robocup-")):
         name = name.replace("-", " ", 1)
     command = f"elevens {name}".rstrip()
+    args = _parse(argv, command, debug)
     starts_a_server = isinstance(args, RoboCupPlayArgs | RoboCupTrainArgs | RoboCupBenchArgs)
     if from_command_line and starts_a_server:
         from elevens.robocup.isolation import enter_private_network
@@ -208,6 +210,38 @@ def main(argv: list[str] | None = None) -> None:
         raise SystemExit(EXIT_BAD_INPUT) from None
     finally:
         signal.signal(signal.SIGTERM, previous)
+
+
+def _parse(argv: list[str], command: str, debug: bool) -> object:
+    """``tyro.cli`` with its usage errors (an unknown flag, a value that does not parse) as one
+    line, like every other bad input (``--debug`` keeps tyro's own box). Help goes through."""
+    box = io.StringIO()
+    try:
+        with contextlib.redirect_stderr(box):
+            return tyro.cli(Command, args=argv, prog="elevens")
+    except SystemExit as stop:
+        text = box.getvalue()
+        if stop.code == EXIT_BAD_INPUT and text.strip() and not debug:
+            print(f"{command}: error: {_tyro_message(text)}", file=sys.stderr)
+            raise SystemExit(EXIT_BAD_INPUT) from None
+        sys.stderr.write(text)
+        raise
+
+
+def _tyro_message(box: str) -> str:
+    """The message inside one of tyro's error boxes, on one line, with a pointer to --help."""
+    lines = []
+    for raw in box.splitlines():
+        line = raw.strip().strip("│╭╮╰╯").strip()
+        if line.startswith("─") and not line.strip("─ "):
+            if lines:
+                break  # the message ends where the box's first rule is
+            continue
+        if line.startswith(("─", "Argument helptext", "For full helptext")) or not line:
+            continue
+        lines.append(line)
+    message = " ".join(lines).replace("__tyro-dummy-inner__.config.", "")
+    return message + " (--help lists the options)"
 
 
 def _expected_errors() -> tuple[type[BaseException], ...]:

@@ -59,6 +59,7 @@ NUMERIC_RANGES: dict[str, tuple[float, float]] = {
     "num_processes": (0, math.inf),
     "process_id": (-1, math.inf),
     "devices": (1, math.inf),
+    "minibatch_size": (1, math.inf),
 }
 """Every numeric field of the subcommands' args, by name (tests/test_cli.py checks that none is
 missing). Finer checks that need the game (``--view`` against the players) come later."""

@@ -12,7 +12,7 @@ import time
 from dataclasses import asdict, dataclass
 
 from elevens.cli_checks import EXIT_INTERRUPTED, exit_with_error
-from elevens.robocup.server import RcssserverNotFound, find_rcssserver
+from elevens.robocup.server import find_rcssserver
 
 
 @dataclass(frozen=True)
@@ -111,10 +111,8 @@ RoboCupArgs = RoboCupServeArgs | RoboCupPlayArgs | RoboCupTrainArgs | RoboCupBen
 
 
 def _binary(path: str | None) -> str:
-    try:
-        return find_rcssserver(path)
-    except RcssserverNotFound as error:
-        exit_with_error("elevens robocup", error, 2)
+    # A missing server is bad input: elevens.cli prints one line naming the command, exit 2.
+    return find_rcssserver(path)
 
 
 def serve(args: RoboCupServeArgs) -> None:

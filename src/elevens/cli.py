@@ -230,7 +230,7 @@ def _parse(argv: list[str], command: str, debug: bool) -> object:
 
 def _tyro_message(box: str) -> str:
     """The message inside one of tyro's error boxes, on one line, with a pointer to --help."""
-    lines = []
+    lines: list[str] = []
     for raw in box.splitlines():
         line = raw.strip().strip("│╭╮╰╯").strip()
         if line.startswith("─") and not line.strip("─ "):

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import csv
 import datetime
+import io
 import math
 import os
 import time
@@ -39,6 +40,8 @@ from rich.progress import (
     TimeElapsedColumn,
     TimeRemainingColumn,
 )
+
+from elevens.files import write_atomically
 
 METRICS_CSV = "metrics.csv"
 EVENTS_LOG = "events.log"
@@ -190,14 +193,11 @@ def _drop_rows_after(path: Path, step: int) -> None:
     kept = [row for row in rows[1:] if not (row and row[0].isdigit() and int(row[0]) > step)]
     if len(kept) == len(rows) - 1:
         return
-    temporary = path.with_name(f".{path.name}.tmp")
-    with temporary.open("w", newline="", encoding="utf-8") as handle:
-        writer = csv.writer(handle, lineterminator="\n")
-        writer.writerow(CSV_HEADER)
-        writer.writerows(kept)
-        handle.flush()
-        os.fsync(handle.fileno())
-    os.replace(temporary, path)
+    text = io.StringIO()
+    writer = csv.writer(text, lineterminator="\n")
+    writer.writerow(CSV_HEADER)
+    writer.writerows(kept)
+    write_atomically(path, lambda handle: handle.write(text.getvalue().encode("utf-8")))
 
 
 def read_metrics_csv(path: str | os.PathLike[str]) -> dict[str, Curve]:

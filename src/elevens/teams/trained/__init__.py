@@ -13,8 +13,6 @@ its callers.
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 import zipfile
 from collections.abc import Mapping
 from pathlib import Path
@@ -22,6 +20,8 @@ from typing import Any
 
 import numpy as np
 from flax import traverse_util
+
+from elevens.files import write_atomically
 
 NETWORKS_FILE = "networks.npz"
 CONFIG_FILE = "config.json"
@@ -70,14 +70,14 @@ def save_networks(
         for group in NETWORK_GROUPS
         for path, leaf in traverse_util.flatten_dict(_plain(networks[group]), sep="/").items()
     }
-    _write_atomically(
+    write_atomically(
         directory / NETWORKS_FILE,
         lambda handle: np.savez(handle, **flat),  # type: ignore[arg-type]
     )
     text = json.dumps(dict(config), indent=2) + "\n"
-    _write_atomically(directory / CONFIG_FILE, lambda handle: handle.write(text.encode()))
+    write_atomically(directory / CONFIG_FILE, lambda handle: handle.write(text.encode()))
     if card is not None:
-        _write_atomically(directory / CARD_FILE, lambda handle: handle.write(card.encode()))
+        write_atomically(directory / CARD_FILE, lambda handle: handle.write(card.encode()))
     return directory
 
 
@@ -132,19 +132,3 @@ def _plain(tree: Any) -> Any:
     if isinstance(tree, Mapping):
         return {str(key): _plain(value) for key, value in tree.items()}
     return tree
-
-
-def _write_atomically(path: Path, write: Any) -> None:
-    """``write(binary handle)`` into a temporary file beside ``path``, then rename it into
-    place: a reader never sees half a file."""
-    descriptor, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    try:
-        with os.fdopen(descriptor, "wb") as handle:
-            write(handle)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.chmod(temporary, 0o644)  # mkstemp's 0600 would hide package data from other users
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise

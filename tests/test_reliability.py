@@ -16,6 +16,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import elevens
+from elevens.bench.cli_bench import TrainBenchArgs
 from elevens.cli import main
 from elevens.cli_checks import NUMERIC_RANGES
 from elevens.eval.cli_eval import (
@@ -33,7 +34,6 @@ from elevens.robocup.cli_robocup import (
     RoboCupTrainArgs,
 )
 from elevens.train.checkpoint import Checkpointer, CheckpointError
-from elevens.train.cli_train import TrainBenchArgs
 
 ARG_CLASSES = (
     AnalyzeArgs, CurvesArgs, RenderArgs, TournamentArgs, ViewArgs, RoboCupBenchArgs,

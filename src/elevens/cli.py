@@ -13,6 +13,7 @@ from typing import Annotated
 
 import tyro
 
+from elevens.bench.cli_bench import TrainBenchArgs, bench_train_command
 from elevens.cli_checks import EXIT_BAD_INPUT, EXIT_INTERRUPTED, check_numeric_args, one_line
 from elevens.eval.cli_eval import (
     AnalyzeArgs,
@@ -29,13 +30,7 @@ from elevens.robocup.cli_robocup import (
     RoboCupTrainArgs,
     run_robocup_command,
 )
-from elevens.train.cli_train import (
-    TrainArgs,
-    TrainBenchArgs,
-    bench_train_command,
-    command_flags_first,
-    train_command,
-)
+from elevens.train.cli_train import TrainArgs, command_flags_first, train_command
 
 
 @dataclass(frozen=True)

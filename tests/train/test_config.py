@@ -250,7 +250,8 @@ def test_config_differences_ignore_host_loop_fields() -> None:
 def test_cli_args_parse_a_preset_with_flag_overrides() -> None:
     import tyro
 
-    from elevens.train.cli_train import TrainArgs, TrainBenchArgs, command_flags_first
+    from elevens.bench.cli_bench import TrainBenchArgs
+    from elevens.train.cli_train import TrainArgs, command_flags_first
 
     args = tyro.cli(
         TrainArgs,

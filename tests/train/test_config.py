@@ -119,7 +119,7 @@ def test_whole_group_override() -> None:
         ({"network.features": 0}, ["network.features"]),
         ({"run.games_per_iteration": 0}, ["run.games_per_iteration"]),
         ({"run.games_per_iteration": 10}, ["ppo.batch_size", "run.games_per_iteration"]),
-        ({"run.eval_teams": ("random", "robots")}, ["run.eval_teams", "naive", "teamwork"]),
+        ({"run.eval_teams": ("random", "random")}, ["run.eval_teams", "naive", "teamwork"]),
         ({"run.iterations_per_chunk": 0}, ["run.iterations_per_chunk"]),
         ({"run.seed": 1.5}, ["run.seed"]),
         ({"run.max_minutes": -5.0}, ["run.max_minutes=-5.0", ">= 0"]),

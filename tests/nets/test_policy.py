@@ -21,8 +21,8 @@ from elevens.env.state import NUM_ENTITY_FEATURES, NUM_SELF_FEATURES, Observatio
 from elevens.nets.attention import MaskedMultiHeadAttention, attention_pool, masked_softmax
 from elevens.nets.distributions import LOG_STD_MAX, LOG_STD_MIN
 from elevens.nets.policy import AttentionPolicy, PolicyCarry
-from elevens.nets.team import NetworkTeam
 from elevens.teams.base import TeamPolicy
+from elevens.teams.network import NetworkTeam
 
 
 def random_obs(seed: int, batch_shape: tuple[int, ...], n: int) -> Observation:

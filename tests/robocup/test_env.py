@@ -30,7 +30,6 @@ from elevens.env.state import (
     State,
 )
 from elevens.nets.policy import AttentionPolicy
-from elevens.nets.team import NetworkTeam
 from elevens.robocup.actions import ActionIndex, actions_to_commands
 from elevens.robocup.client import Cycle, PlayerCycle, ServerDied
 from elevens.robocup.env import (
@@ -54,6 +53,7 @@ from elevens.robocup.protocol import (
     parse_message,
 )
 from elevens.robocup.server import ServerAddress
+from elevens.teams.network import NetworkTeam
 from tests.robocup.conftest import needs_rcssserver
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "rcss"

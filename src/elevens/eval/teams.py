@@ -28,7 +28,7 @@ from typing import Any, cast
 import jax
 import jax.numpy as jnp
 
-from elevens.eval.play import HANDCRAFTED
+from elevens.teams.registry import HANDCRAFTED
 from elevens.teams.base import TeamPolicy
 from elevens.teams.trained import shipped_team_names
 
@@ -246,7 +246,7 @@ def _intact_train_state_step(checkpointer: Any, before: int, config: Any) -> int
 def _network_team(config: Any, deterministic: bool | None) -> TeamPolicy:
     """The NetworkTeam of ``config``'s policy; ``deterministic`` None takes the run's
     ``run.eval_deterministic``."""
-    from elevens.nets.team import NetworkTeam
+    from elevens.teams.network import NetworkTeam
 
     if deterministic is None:
         deterministic = bool(config.run.eval_deterministic)
@@ -302,7 +302,7 @@ def _load_checkpoint(
 
 def load_team(spec: str | TeamSpec, *, deterministic: bool | None = None) -> Team:
     """A ``Team`` from a spec word (or a parsed ``TeamSpec``); see the module docstring."""
-    from elevens.eval.play import resolve_team
+    from elevens.teams.registry import resolve_team
 
     parsed = parse_team_spec(spec) if isinstance(spec, str) else spec
     if parsed.handcrafted is not None:
@@ -415,7 +415,7 @@ def common_field(teams: list[Team]) -> dict[str, float]:
 
 def fit_to_field(team: Team, params: Any) -> Team:
     """A handcrafted team told the field of ``params`` (checkpoints are returned as they are)."""
-    from elevens.eval.play import resolve_team
+    from elevens.teams.registry import resolve_team
 
     if team.field is not None or team.params is not None:
         return team

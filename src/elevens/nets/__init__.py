@@ -19,7 +19,7 @@ from elevens.nets.policy import (
     RecurrentCore,
     reset_carry,
 )
-from elevens.nets.team import NetworkTeam
+from elevens.teams.network import NetworkTeam
 
 __all__ = [
     "FF2",

@@ -54,7 +54,7 @@ from jax.sharding import Mesh
 from elevens.env.params import EnvParams
 from elevens.env.soccer import Soccer
 from elevens.env.state import GlobalState, Observation
-from elevens.eval.play import HANDCRAFTED, resolve_team
+from elevens.teams.registry import HANDCRAFTED, resolve_team
 from elevens.nets.attention import Capacity
 from elevens.nets.critic import AttentionCritic
 from elevens.nets.policy import AttentionPolicy, PolicyCarry, visible_capacity_index
@@ -743,7 +743,7 @@ def evaluate(
     them.
     """
     from elevens.eval.match import play_match, summary
-    from elevens.nets.team import NetworkTeam
+    from elevens.teams.network import NetworkTeam
 
     run = trainer.config.run
     teams = run.eval_teams if teams is None else teams
@@ -1305,7 +1305,7 @@ def write_gif(
     from elevens.env.render import frames_from_states, save_video
     from elevens.eval.match import play_match
     from elevens.eval.play import states_from_record
-    from elevens.nets.team import NetworkTeam
+    from elevens.teams.network import NetworkTeam
 
     learner = NetworkTeam(
         policy=trainer.policy, deterministic=trainer.config.run.eval_deterministic,

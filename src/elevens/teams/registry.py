@@ -1,0 +1,46 @@
+"""The named teams: the handcrafted ones by name, told the field they play on."""
+
+from __future__ import annotations
+
+import dataclasses
+
+from elevens.env import EnvParams
+from elevens.teams.base import TeamPolicy
+from elevens.teams.scripted import Field, NaiveTeam, RandomTeam, TeamworkTeam
+
+HANDCRAFTED: dict[str, TeamPolicy] = {
+    "random": RandomTeam(),
+    "naive": NaiveTeam(),
+    "teamwork": TeamworkTeam(),
+}
+
+
+def resolve_team(name: str, params: EnvParams | None = None) -> TeamPolicy:
+    """A handcrafted team by name, told the field of ``params`` when given.
+
+    The scripted teams un-normalise their observations with an assumed geometry (SPEC.md's
+    100 x 70 field by default); on another field they need its numbers, or they would aim at the
+    wrong goal. Unknown names are a clear error that lists the allowed ones.
+    """
+    try:
+        team = HANDCRAFTED[name]
+    except KeyError:
+        raise ValueError(
+            f"team {name!r} is unknown: allowed are {', '.join(sorted(HANDCRAFTED))}"
+        ) from None
+    if params is None:
+        return team
+    field = Field(
+        half_length=float(params.half_length),
+        half_width=float(params.half_width),
+        goal_half_width=float(params.goal_width) / 2,
+        turn_speed=float(params.turn_speed),
+        ball_friction=float(params.ball_friction),
+    )
+    if field == Field():
+        return team
+    if isinstance(team, NaiveTeam):
+        return dataclasses.replace(team, field=field)
+    if isinstance(team, TeamworkTeam):
+        return dataclasses.replace(team, attack=dataclasses.replace(team.attack, field=field))
+    return team

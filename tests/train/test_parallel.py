@@ -125,3 +125,15 @@ def test_train_flags_with_values_move_before_the_preset() -> None:
     assert command_flags_first(args) == [
         "--distributed", "--coordinator", "h:1", "--process-id=1", "2v2", "--run.seed", "3",
     ]
+
+
+def test_distributed_outside_a_cluster_job_says_what_to_give() -> None:
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("SLURM_", "OMPI_"))}
+    result = subprocess.run(
+        [sys.executable, "-m", "elevens", "train", "quickstart", "--distributed"],
+        cwd=ROOT, env={**env, "PYTHONPATH": str(ROOT / "src")},
+        capture_output=True, text=True, timeout=120,
+    )
+    assert result.returncode == 2, result.stderr
+    line = result.stderr.strip()
+    assert "\n" not in line and "no SLURM or Open MPI job" in line and "--coordinator" in line

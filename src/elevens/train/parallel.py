@@ -168,4 +168,11 @@ def initialize_distributed(
             coordinator_address=coordinator, num_processes=num_processes, process_id=process_id
         )
     else:
-        jax.distributed.initialize()
+        try:
+            jax.distributed.initialize()
+        except (ValueError, RuntimeError) as error:
+            raise ValueError(
+                f"--distributed found no SLURM or Open MPI job to read the processes from "
+                f"(jax: {str(error).strip()}); outside such a job give --coordinator HOST:PORT "
+                "--num-processes N --process-id I on every process"
+            ) from error

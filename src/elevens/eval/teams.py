@@ -28,11 +28,11 @@ from typing import Any, cast
 import jax
 import jax.numpy as jnp
 
-from elevens.teams.registry import HANDCRAFTED
 from elevens.teams.base import TeamPolicy
+from elevens.teams.registry import HANDCRAFTED
 from elevens.teams.trained import shipped_team_names
 
-HANDCRAFTED_NAMES: tuple[str, ...] = tuple(HANDCRAFTED)  # one list of names: eval.play's
+HANDCRAFTED_NAMES: tuple[str, ...] = tuple(HANDCRAFTED)  # one list of names: teams.registry's
 CHECKPOINTS_SUBDIR = "checkpoints"
 """Where the trainer writes checkpoints inside a run directory (``trainer.CHECKPOINT_DIR``)."""
 NETWORK_TEAM_NAME = "network"

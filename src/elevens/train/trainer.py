@@ -54,10 +54,10 @@ from jax.sharding import Mesh
 from elevens.env.params import EnvParams
 from elevens.env.soccer import Soccer
 from elevens.env.state import GlobalState, Observation
-from elevens.teams.registry import HANDCRAFTED, resolve_team
 from elevens.nets.attention import Capacity
 from elevens.nets.critic import AttentionCritic
 from elevens.nets.policy import AttentionPolicy, PolicyCarry, visible_capacity_index
+from elevens.teams.registry import HANDCRAFTED, resolve_team
 from elevens.train import opponents as opp
 from elevens.train import parallel, ppo
 from elevens.train.config import (

@@ -1,19 +1,22 @@
 #!/usr/bin/env bash
 # The recipe of the shipped teams (docs/results/table_6_3.md): one budget B for both teams.
-#   4-player team : the 2v2 preset for B minutes.
-#   22-player team: the same 2v2 run's checkpoint at S minutes, then 11 v 11 for B - S minutes
-#                   (--run.init-from; the 2v2 preset's PPO numbers, but Adam 3e-4 and
-#                   minibatches of 4 games out of 16 games an iteration, and no approach shaping:
-#                   at 11 v 11 it paid each player about 15 an episode for running at the ball,
-#                   against 0.4 for the ball shaping and +-1 a goal, which makes a clump).
+#   Stage 1           : the 2v2 preset for S minutes: the shipped elevens-2v2 (S = 80).
+#   4-player team     : the same 2v2 run goes on to B minutes (the table's equal-budget team).
+#   22-player team    : stage 1's networks, then B - S minutes of 11 v 11 mixed with 2 v 2 (half
+#                       the iterations each, --env.mix 2v2 --env.mix-shares 0.5): the shipped
+#                       elevens-11v11 (B = 180). The 2v2 preset's PPO numbers, but Adam 3e-4,
+#                       GAE, 16 games an iteration in minibatches of 4 games (88 and 22 in the 2v2
+#                       iterations: the same player sequences), and no approach shaping: at 11 v 11
+#                       it paid each player about 15 an episode for running at the ball, against
+#                       0.4 for the ball shaping and +-1 a goal, which makes a clump.
 # Each stage is its own run directory and resumes with --resume, so re-running this script after
-# an interruption continues where it stopped. Stages 2a and 2b run side by side, one core each.
+# an interruption continues where it stopped. The last two stages run side by side, one core each.
 #
-# Usage: scripts/train_shipped_teams.sh RUNS_DIR [B_MINUTES] [S_MINUTES]
+# Usage: scripts/train_shipped_teams.sh RUNS_DIR [B_MINUTES] [S_MINUTES]   (session 11: 180 80)
 set -euo pipefail
 runs=${1:?usage: scripts/train_shipped_teams.sh RUNS_DIR [B_MINUTES] [S_MINUTES]}
-budget=${2:-80}
-switch=${3:-30}
+budget=${2:-180}
+switch=${3:-80}
 elevens=${ELEVENS:-elevens}
 mkdir -p "$runs"
 
@@ -29,10 +32,11 @@ nice -n 10 taskset -c 1 "$elevens" train 2v2 --resume --no-progress \
   --run.max-minutes "$budget" --run.run-dir "$runs/4p" &
 four=$!
 
-# Stage 2b: the 22-player team plays 11 v 11 for B - S minutes from the stage-1 networks.
+# Stage 2b: the 22-player team: 11 v 11 mixed with 2 v 2 for B - S minutes from stage 1.
 nice -n 10 taskset -c 0 "$elevens" train 11v11 $(resume_flag "$runs/22p") --no-progress \
   --run.init-from "$runs/2v2_start" --run.max-minutes "$((budget - switch))" \
-  --run.run-dir "$runs/22p" --run.games-per-iteration 16 --ppo.batch-size 176 \
+  --run.run-dir "$runs/22p" --env.mix 2v2 --env.mix-shares 0.5 \
+  --run.games-per-iteration 16 --ppo.batch-size 176 \
   --ppo.minibatch-size 44 --ppo.learning-rate 3e-4 --ppo.gamma 0.99 \
   --ppo.advantage-estimator gae --ppo.normalize-advantages --ppo.entropy-weight 1e-3 \
   --opponent.polyak-tau 0.05 --env.no-shaping-schedule --env.approach-shaping-weight 0 \
@@ -40,5 +44,6 @@ nice -n 10 taskset -c 0 "$elevens" train 11v11 $(resume_flag "$runs/22p") --no-p
   --run.eval-games 50 --run.eval-teams naive teamwork
 wait "$four"
 
-"$elevens" export-team "$runs/4p" --out "$runs/export/elevens-2v2"
+"$elevens" export-team "$runs/2v2_start" --out "$runs/export/elevens-2v2"
+"$elevens" export-team "$runs/4p" --out "$runs/export/4p-equal-budget"
 "$elevens" export-team "$runs/22p" --out "$runs/export/elevens-11v11"

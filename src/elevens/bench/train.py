@@ -195,17 +195,29 @@ def bench_train(
         return metrics
 
     compile_s, iteration_s = _median_time(full, repeats)
+    nan = float("nan")
+    whole = TrainBenchResult(
+        players=players,
+        games=games,
+        episode_length=episode_length,
+        epochs=config.ppo.epochs,
+        minibatch_size=minibatch,
+        steps_per_s=games * episode_length / iteration_s,
+        iteration_s=iteration_s,
+        env_s=nan,
+        rollout_s=nan,
+        update_s=nan,
+        env_share=nan,
+        forward_share=nan,
+        update_share=nan,
+        compile_s=compile_s,
+        repeats=repeats,
+        backend=jax.default_backend(),
+        devices=devices,
+        steps_per_s_per_device=games * episode_length / iteration_s / devices,
+    )
     if devices > 1 or not parts:
-        nan = float("nan")
-        return TrainBenchResult(
-            players=players, games=games, episode_length=episode_length,
-            epochs=config.ppo.epochs, minibatch_size=minibatch,
-            steps_per_s=games * episode_length / iteration_s, iteration_s=iteration_s,
-            env_s=nan, rollout_s=nan, update_s=nan, env_share=nan, forward_share=nan,
-            update_share=nan, compile_s=compile_s, repeats=repeats,
-            backend=jax.default_backend(), devices=devices,
-            steps_per_s_per_device=games * episode_length / iteration_s / devices,
-        )
+        return whole
 
     collect = jax.jit(trainer.collect)
     learn = jax.jit(trainer.learn)
@@ -222,27 +234,17 @@ def bench_train(
     _, env_s = _median_time(lambda: runner(states, jax.random.key(3)), repeats)
     reference = host_reference()
 
-    return TrainBenchResult(
-        players=players,
-        games=games,
-        episode_length=episode_length,
-        epochs=config.ppo.epochs,
-        minibatch_size=minibatch,
-        steps_per_s=games * episode_length / iteration_s,
-        iteration_s=iteration_s,
+    return dataclasses.replace(
+        whole,
         env_s=env_s,
         rollout_s=rollout_s,
         update_s=update_s,
         env_share=env_s / iteration_s,
         forward_share=max(rollout_s - env_s, 0.0) / iteration_s,
         update_share=update_s / iteration_s,
-        compile_s=compile_s,
-        repeats=repeats,
-        backend=jax.default_backend(),
         host_matmul_gflops=reference.matmul_gflops,
         host_weight_gradient_gflops=reference.weight_gradient_gflops,
         host_stream_gbps=reference.stream_gbps,
-        steps_per_s_per_device=games * episode_length / iteration_s,
     )
 
 

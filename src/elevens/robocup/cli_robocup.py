@@ -110,15 +110,10 @@ class RoboCupBenchArgs:
 RoboCupArgs = RoboCupServeArgs | RoboCupPlayArgs | RoboCupTrainArgs | RoboCupBenchArgs
 
 
-def _binary(path: str | None) -> str:
-    # A missing server is bad input: elevens.cli prints one line naming the command, exit 2.
-    return find_rcssserver(path)
-
-
 def serve(args: RoboCupServeArgs) -> None:
     from elevens.robocup.server import ServerProcess
 
-    binary = _binary(args.rcssserver)
+    binary = find_rcssserver(args.rcssserver)
     servers = [ServerProcess(binary).start() for _ in range(args.servers)]
     try:
         for server in servers:
@@ -145,7 +140,7 @@ def serve(args: RoboCupServeArgs) -> None:
 def play(args: RoboCupPlayArgs) -> None:
     from elevens.robocup.play import play_robocup
 
-    binary = _binary(args.rcssserver)
+    binary = find_rcssserver(args.rcssserver)
     results = play_robocup(
         args.team0, args.team1, players_per_team=args.players, episodes=args.episodes,
         episode_length=args.steps, action=args.action, keep_ball_in_play=args.keep_ball_in_play,
@@ -165,7 +160,7 @@ def train(args: RoboCupTrainArgs) -> None:
     from elevens.train.checkpoint import CheckpointError
     from elevens.train.trainer import RunRefusedError
 
-    binary = _binary(args.rcssserver)
+    binary = find_rcssserver(args.rcssserver)
     config = RoboCupTrainConfig(
         players_per_team=args.players, servers=args.servers, episode_length=args.steps,
         iterations=args.iterations, minutes=args.minutes, keep_ball_in_play=args.keep_ball_in_play,
@@ -192,7 +187,7 @@ def bench(args: RoboCupBenchArgs) -> None:
     from elevens.robocup.client import measure_cycles
     from elevens.robocup.server import ServerProcess
 
-    binary = _binary(args.rcssserver)
+    binary = find_rcssserver(args.rcssserver)
     with ServerProcess(binary) as server:
         result = measure_cycles(
             server.address, players_per_team=args.players, cycles=args.cycles, eye=args.eye,

@@ -802,13 +802,12 @@ def _validate_opponent_mix(config: TrainConfig) -> None:
     )
     entries = []
     for entry in mix:
-        spec, equals, share = entry.rpartition("=") if isinstance(entry, str) else ("", "", "")
         try:
-            value = float(share)
-        except ValueError:
-            value = math.nan
+            spec, value = _mix_entry(entry)
+        except (AttributeError, ValueError):  # not a string, or no number after the last '='
+            spec, value = "", math.nan
         _require(
-            bool(equals) and bool(spec) and math.isfinite(value) and 0 <= value <= 1,
+            bool(spec) and math.isfinite(value) and 0 <= value <= 1,
             f"opponent.mix entry {entry!r} is invalid: {form}",
         )
         entries.append((spec, value))

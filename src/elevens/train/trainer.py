@@ -57,7 +57,7 @@ from elevens.env.state import GlobalState, Observation
 from elevens.nets.attention import Capacity
 from elevens.nets.critic import AttentionCritic
 from elevens.nets.policy import AttentionPolicy, PolicyCarry, visible_capacity_index
-from elevens.teams.registry import HANDCRAFTED, resolve_team
+from elevens.teams.registry import resolve_team
 from elevens.train import opponents as opp
 from elevens.train import parallel, ppo
 from elevens.train.config import (
@@ -636,18 +636,37 @@ def _build_trainer(config: TrainConfig) -> Trainer:
 
 def _fixed_opponents(config: TrainConfig, env_params: EnvParams) -> tuple[FixedOpponent, ...]:
     """The teams of ``opponent.mix`` (not self-play), loaded once per trainer."""
-    from elevens.eval.teams import check_team_size, fit_to_field, load_team
+    from elevens.eval.teams import check_team_size
 
     n = config.env.players_per_team
     fixed = []
     for spec, games in opponent_mix(config)[1:]:
+        team = _team_on_field(spec, env_params, "opponent.mix")
         try:
-            team = fit_to_field(load_team(spec), env_params)
             check_team_size(team, n)
-        except (ValueError, FileNotFoundError) as error:
+        except ValueError as error:
             raise ValueError(f"opponent.mix team {spec!r}: {error}") from error
         fixed.append(FixedOpponent(policy=team.policy, params=team.params, games=games))
     return tuple(fixed)
+
+
+def _team_on_field(spec: str, env_params: EnvParams, field: str) -> Any:
+    """The ``Team`` of a team spec, a handcrafted one told the field of ``env_params``; a spec
+    that does not load is a ValueError naming ``field`` (the config field that gave it)."""
+    from elevens.eval.teams import fit_to_field
+
+    return fit_to_field(_loaded_team(spec, field), env_params)
+
+
+@functools.lru_cache(maxsize=8)
+def _loaded_team(spec: str, field: str) -> Any:
+    """``load_team(spec)``, once per process: evaluations repeat every few iterations."""
+    from elevens.eval.teams import load_team
+
+    try:
+        return load_team(spec)
+    except (ValueError, FileNotFoundError) as error:
+        raise ValueError(f"{field} team {spec!r}: {error}") from error
 
 
 def _index_count(config: TrainConfig) -> int:
@@ -769,20 +788,8 @@ def evaluate(
 
 def evaluation_team(spec: str, env_params: EnvParams) -> tuple[Any, Any]:
     """(TeamPolicy, params) of an evaluation opponent: a handcrafted team told the field, or
-    a trained team loaded once per process (figure 6.4's line against a checkpoint)."""
-    if spec in HANDCRAFTED:
-        return resolve_team(spec, env_params), None
-    return _load_trained_opponent(spec)
-
-
-@functools.lru_cache(maxsize=8)
-def _load_trained_opponent(spec: str) -> tuple[Any, Any]:
-    from elevens.eval.teams import load_team
-
-    try:
-        team = load_team(spec)
-    except (ValueError, FileNotFoundError) as error:
-        raise ValueError(f"run.eval_teams team {spec!r}: {error}") from error
+    a trained team (figure 6.4's line against a checkpoint)."""
+    team = _team_on_field(spec, env_params, "run.eval_teams")
     return team.policy, team.params
 
 

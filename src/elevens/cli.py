@@ -25,8 +25,10 @@ from elevens.eval.cli_eval import (
 )
 from elevens.robocup.cli_robocup import (
     RoboCupBenchArgs,
+    RoboCupMatchArgs,
     RoboCupPlayArgs,
     RoboCupServeArgs,
+    RoboCupTeamArgs,
     RoboCupTrainArgs,
     run_robocup_command,
 )
@@ -158,6 +160,8 @@ Command = (
     | Annotated[RoboCupPlayArgs, tyro.conf.subcommand("robocup-play")]
     | Annotated[RoboCupTrainArgs, tyro.conf.subcommand("robocup-train")]
     | Annotated[RoboCupBenchArgs, tyro.conf.subcommand("robocup-bench")]
+    | Annotated[RoboCupMatchArgs, tyro.conf.subcommand("robocup-match")]
+    | Annotated[RoboCupTeamArgs, tyro.conf.subcommand("robocup-team")]
 )
 
 
@@ -181,7 +185,10 @@ def main(argv: list[str] | None = None) -> None:
         name = name.replace("-", " ", 1)
     command = f"elevens {name}".rstrip()
     args = _parse(argv, command, debug)
-    starts_a_server = isinstance(args, RoboCupPlayArgs | RoboCupTrainArgs | RoboCupBenchArgs)
+    # `robocup team` joins someone else's server: it needs their network.
+    starts_a_server = isinstance(
+        args, RoboCupPlayArgs | RoboCupTrainArgs | RoboCupBenchArgs | RoboCupMatchArgs
+    )
     if from_command_line and starts_a_server:
         from elevens.robocup.isolation import enter_private_network
 
@@ -265,7 +272,13 @@ def _run(args: object) -> None:
     elif isinstance(args, TrainBenchArgs):
         bench_train_command(args)
     elif isinstance(
-        args, RoboCupServeArgs | RoboCupPlayArgs | RoboCupTrainArgs | RoboCupBenchArgs
+        args,
+        RoboCupServeArgs
+        | RoboCupPlayArgs
+        | RoboCupTrainArgs
+        | RoboCupBenchArgs
+        | RoboCupMatchArgs
+        | RoboCupTeamArgs,
     ):
         run_robocup_command(args)
     elif isinstance(args, TournamentArgs | AnalyzeArgs | CurvesArgs | RenderArgs | ViewArgs):

@@ -83,8 +83,13 @@ class FakeServer:
         see_every: int = 2,
         refuse: str | None = None,
         ports: tuple[int, int] | None = None,
+        teams: int = 2,
+        cycle_s: float | None = None,
     ) -> None:
         self.n = n
+        self.first_side = "l"
+        self.expected = teams * n  # players it waits for before its clock runs
+        self.cycle_s = cycle_s  # real-time mode: a cycle every cycle_s, no (think)
         self.wait_s = wait_s
         self.silent = set(silent)
         self.see_every = see_every
@@ -102,6 +107,7 @@ class FakeServer:
         self.mode = "before_kick_off"
         self.timeouts = 0
         self.extra: dict[int, list[tuple[str, bytes]]] = {}
+        self.received_by_cycle: list[list[list[bytes]]] = []  # real time: [cycle][player]
         self.frozen = threading.Event()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
@@ -132,9 +138,12 @@ class FakeServer:
                 if self.frozen.is_set():
                     time.sleep(0.005)
                     continue
-                if len(self.players) < 2 * self.n:
+                if len(self.players) < self.expected:
                     time.sleep(0.005)  # rcssserver sleeps 50 ms per cycle while time is 0
-                self._cycle()
+                if self.cycle_s is not None:
+                    self._real_time_cycle()
+                else:
+                    self._cycle()
         except OSError:
             if not self._stop.is_set():
                 raise
@@ -177,7 +186,32 @@ class FakeServer:
                 break
         for p in waiting:
             p.awaiting = False
-        if len(self.players) == 2 * self.n:
+        if len(self.players) == self.expected:
+            self.time += 1
+
+    def _real_time_cycle(self) -> None:
+        """rcssserver without synch mode: sensors at the start of each cycle, then commands
+        are taken until the next one begins (the first body command of a cycle counts)."""
+        assert self.cycle_s is not None
+        stamp = str(self.time)
+        for p in self.players:
+            if not p.gone:
+                p.send(SENSE.replace("@T@", stamp))
+                if self.time % self.see_every == 0:
+                    p.send(SEE.replace("@T@", stamp))
+        start = len(self.received_by_cycle)
+        self.received_by_cycle.append([[] for _ in self.players])
+        deadline = time.monotonic() + self.cycle_s
+        while (remaining := deadline - time.monotonic()) > 0:
+            socks = [self.main, self.coach] + [p.sock for p in self.peers]
+            ready, _, _ = select.select(socks, [], [], remaining)
+            for sock in ready:
+                before = [len(p.received) for p in self.players]
+                self._receive(sock)
+                for i, p in enumerate(self.players):
+                    if i < len(before) and len(p.received) > before[i]:
+                        self.received_by_cycle[start][i].extend(p.received[before[i] :])
+        if len(self.players) == self.expected:
             self.time += 1
 
     def _targets(self, target: str) -> list[_Peer]:
@@ -219,6 +253,8 @@ class FakeServer:
         team = text.split()[1]
         first_team = self.players[0].name.split()[0] if self.players else team
         side = "l" if team == first_team else "r"
+        if self.first_side == "r":  # another program's team took the left side before us
+            side = "r" if side == "l" else "l"
         unum = sum(1 for p in self.players if p.name.split()[0] == team) + 1
         peer = _Peer(f"{team} {unum}", addr)
         self.players.append(peer)
@@ -588,6 +624,69 @@ def test_constructor_rejects_bad_settings(kwargs: dict[str, Any], message: str) 
     n = args.pop("players_per_team")
     with pytest.raises(ValueError, match=message):
         RoboCupClient(ServerAddress(6000, 6001, 6002), n, **args)
+
+
+@pytest.mark.parametrize("other_team_first", [False, True])
+def test_one_team_takes_the_side_it_is_given_and_plays_without_a_trainer(
+    fake: Any, other_team_first: bool
+) -> None:
+    server = fake(3, teams=1)
+    if other_team_first:
+        server.first_side = "r"
+    client = _client(server, team_names=("mine", "theirs"), one_team=True, trainer=False,
+                     eye=False)
+    with client:
+        first = client.connect()
+        side = 1 if other_team_first else 0
+        assert client.sides == (side,) and server.trainer is None
+        assert client.team_names == (("theirs", "mine") if side else ("mine", "theirs"))
+        assert [(p.side, p.unum) for p in first.players] == [(side, 1), (side, 2), (side, 3)]
+        t0 = first.server_time
+        for k in range(1, 6):
+            cycle = client.step([Dash(50.0), None, Turn(10.0)])
+            assert cycle.server_time == t0 + k and cycle.missed == 0
+        with pytest.raises(ValueError, match="one entry per player \\(3 = 1 x 3\\)"):
+            client.step([None] * 6)
+        with pytest.raises(RuntimeError, match="not connected"):
+            client.send_trainer()
+    assert server.early_dones == 0 and server.timeouts == 0
+    assert server.players[0].received[-2] == b"(dash 50)(done)\x00"
+
+
+def test_real_time_cycles_start_at_sense_body_and_a_late_command_is_never_doubled(
+    fake: Any,
+) -> None:
+    server = fake(2, teams=1, cycle_s=0.05)
+    client = _client(server, one_team=True, trainer=False, eye=False, synch=False,
+                     think_timeout_s=0.5)
+    with client:
+        cycle = client.connect()
+        times = [cycle.server_time]
+        for _ in range(8):
+            cycle = client.step([Dash(60.0), Turn(5.0)])
+            times.append(cycle.server_time)
+            assert all(isinstance(p.sense_body, SenseBody) for p in cycle.players)
+        # One cycle a step while we keep up.
+        assert np.diff(times).tolist() == [1] * 8 and client.stats.stale_thinks == 0
+        time.sleep(0.16)  # about three cycles late
+        late = client.step([Dash(70.0), Turn(5.0)])
+        assert late.server_time >= times[-1] + 3
+        assert client.stats.stale_thinks >= 2  # the cycles we slept through, counted
+        for _ in range(3):
+            client.step([Dash(60.0), Turn(5.0)])
+    assert all(b"(done)" not in d for p in server.players for d in p.received)
+    # Never more than one body command from a player in one server cycle.
+    for received in server.received_by_cycle:
+        for datagrams in received:
+            assert sum(d.count(b"(dash") + d.count(b"(turn ") for d in datagrams) <= 1
+
+
+def test_eye_needs_the_trainer_and_synch_mode() -> None:
+    address = ServerAddress(6000, 6001, 6002)
+    with pytest.raises(ValueError, match="eye=True needs the trainer"):
+        RoboCupClient(address, 2, trainer=False, eye=True)
+    with pytest.raises(ValueError, match="synch mode"):
+        RoboCupClient(address, 2, synch=False, eye=True)
 
 
 def test_player_cycle_is_a_frozen_record() -> None:

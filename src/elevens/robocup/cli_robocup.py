@@ -107,7 +107,76 @@ class RoboCupBenchArgs:
     """The server binary (default: $ELEVENS_RCSSSERVER, then PATH)."""
 
 
-RoboCupArgs = RoboCupServeArgs | RoboCupPlayArgs | RoboCupTrainArgs | RoboCupBenchArgs
+@dataclass(frozen=True)
+class RoboCupMatchArgs:
+    """Play full matches in rcssserver with the referee (two halves, set pieces, fouls): an
+    elevens team or another team's binaries on each side; the score, W/D/L and the mean score
+    difference with a 95% interval."""
+
+    team0: str | None = "naive"
+    """Left team: naive, random, a shipped trained team or a checkpoint path (or use
+    --team0-cmd)."""
+    team1: str | None = None
+    """Right team, as --team0 (or use --team1-cmd)."""
+    team0_cmd: str | None = None
+    """Left team as a start command; {host}, {port} and {team} are filled in, e.g.
+    "HELIOS/start.sh -p {port} -t {team}"."""
+    team1_cmd: str | None = None
+    """Right team as a start command, as --team0-cmd."""
+    team0_name: str = "elevens"
+    """Left team's name in the server (at most 15 of A-Z a-z 0-9 _ + -)."""
+    team1_name: str = "opponent"
+    """Right team's name in the server (different from --team0-name)."""
+    matches: int = 1
+    """Matches to play (a new server for each)."""
+    players: int = 11
+    """Players per team."""
+    half_time: int = 300
+    """Cycles per half x 0.1 as rcssserver counts (300 = 3000 cycles, regulation)."""
+    real_time: bool = False
+    """Play with the server's 100 ms cycles (a competition's mode) instead of synch mode."""
+    log_dir: str | None = None
+    """Keep each match's .rcg and .rcl game logs and the server's output here."""
+    results: str | None = None
+    """Append one JSON line per match to this file."""
+    json: bool = False
+    """Print the summary as one JSON object."""
+    rcssserver: str | None = None
+    """The server binary (default: $ELEVENS_RCSSSERVER, then PATH)."""
+
+
+@dataclass(frozen=True)
+class RoboCupTeamArgs:
+    """Join a running rcssserver as one team (a competition's server, or one that `elevens
+    robocup match` started): connect the players, play until time over."""
+
+    team: str = "naive"
+    """naive, random, a shipped trained team or a checkpoint path."""
+    host: str = "127.0.0.1"
+    """The server's host."""
+    port: int = 6000
+    """The server's player port."""
+    team_name: str = "elevens"
+    """The team's name in the server (at most 15 of A-Z a-z 0-9 _ + -)."""
+    players: int = 11
+    """Players to connect (the first is the goalie)."""
+    real_time: bool = False
+    """The server runs 100 ms cycles (no synch mode)."""
+    no_rules: bool = False
+    """Let the policy play set pieces too (no kick-off formation, set-piece routines or
+    goalie catch)."""
+    json: bool = False
+    """Print the result as one JSON object."""
+
+
+RoboCupArgs = (
+    RoboCupServeArgs
+    | RoboCupPlayArgs
+    | RoboCupTrainArgs
+    | RoboCupBenchArgs
+    | RoboCupMatchArgs
+    | RoboCupTeamArgs
+)
 
 
 def serve(args: RoboCupServeArgs) -> None:
@@ -205,8 +274,71 @@ def bench(args: RoboCupBenchArgs) -> None:
     )
 
 
+def match(args: RoboCupMatchArgs) -> None:
+    from elevens.robocup.match import parse_team, play_matches, summarize
+
+    binary = find_rcssserver(args.rcssserver)
+    try:
+        team0 = parse_team(args.team0 if args.team0_cmd is None else None, args.team0_cmd,
+                           args.team0_name)
+        team1 = parse_team(args.team1, args.team1_cmd, args.team1_name)
+        if args.team0_name == args.team1_name:
+            raise ValueError(
+                f"--team0-name and --team1-name are both {args.team0_name!r}: the server "
+                "needs two different names"
+            )
+        if args.half_time < 1:
+            raise ValueError(f"--half-time {args.half_time!r} is invalid: it must be >= 1")
+    except ValueError as error:
+        exit_with_error("elevens robocup match: error", error, 2)
+    results = play_matches(
+        team0, team1, matches=args.matches, players_per_team=args.players,
+        synch=not args.real_time, half_time=args.half_time, log_dir=args.log_dir,
+        rcssserver=binary, results_path=args.results,
+        print_fn=(lambda _: None) if args.json else print,
+    )
+    summary = summarize(results)
+    if args.json:
+        print(json_lib.dumps(asdict(summary)))
+    else:
+        print(summary.line())
+
+
+def team(args: RoboCupTeamArgs) -> None:
+    from elevens.robocup.server import ServerAddress
+    from elevens.robocup.team import RoboCupTeam
+
+    player = RoboCupTeam(
+        args.team, players_per_team=args.players, team_name=args.team_name,
+        synch=not args.real_time, rules=not args.no_rules,
+    )
+    seconds = player.warm_up()
+    if not args.json:
+        print(f"{args.team_name}: compiled and ran the policy once in {seconds:.1f} s", flush=True)
+    address = ServerAddress.from_port(args.port, args.host)
+    result = player.play(
+        address,
+        on_connect=None if args.json else (
+            lambda side: print(f"{args.team_name}: connected on the {'lr'[side]} side",
+                               flush=True)
+        ),
+    )
+    if args.json:
+        print(json_lib.dumps(result.as_dict()))
+    else:
+        print(
+            f"{args.team_name} ({result.team}, {'left' if result.side == 0 else 'right'}): "
+            f"{result.goals_for} - {result.goals_against} after {result.cycles} cycles "
+            f"({result.ended}; late cycles {result.late_cycles}, catches {result.catches})"
+        )
+
+
 def run_robocup_command(args: RoboCupArgs) -> None:
-    if isinstance(args, RoboCupServeArgs):
+    if isinstance(args, RoboCupMatchArgs):
+        match(args)
+    elif isinstance(args, RoboCupTeamArgs):
+        team(args)
+    elif isinstance(args, RoboCupServeArgs):
         serve(args)
     elif isinstance(args, RoboCupPlayArgs):
         play(args)

@@ -137,7 +137,7 @@ class PlayerCycle:
 class Cycle:
     """One synchronous server cycle as seen by all players and the trainer."""
 
-    players: tuple[PlayerCycle, ...]  # 2n entries: left unum 1..n, then right unum 1..n
+    players: tuple[PlayerCycle, ...]  # left unum 1..n, then right unum 1..n (one_team: n)
     world: GlobalView | None  # trainer's see_global of this cycle (only with eye on, parse)
     play_mode: str  # current referee play mode (tracked from hear referee / trainer)
     score: tuple[int, int]  # left, right goals since the client connected / last reset_score
@@ -220,6 +220,14 @@ class RoboCupClient:
     """Drives ``players_per_team`` players per side and the offline trainer of one
     rcssserver in synch mode from one Python process.
 
+    ``one_team=True`` connects only the players of ``team_names[0]``, on the side the server
+    gives (``sides``); the other side is another program's (``team_names[1]``: its name, for
+    the trainer's moves and for telling opponents in ``see``; "" if unknown). ``trainer=False``
+    connects no trainer (a match: the referee runs the game). ``synch=False`` plays a real-time
+    server: a cycle starts with its ``sense_body``, no ``(done)`` is sent, and a cycle that
+    began before our command went out is counted in ``stats.stale_thinks`` (late; the command
+    acts one cycle later, never two at once).
+
     ``address`` is a :class:`ServerAddress` or a running :class:`ServerProcess` (then its
     process state and log are used for :class:`ServerDied`; ``server=`` does the same
     with an address). ``eye`` turns the trainer's ``see_global`` on (ground truth each
@@ -243,6 +251,9 @@ class RoboCupClient:
         *,
         team_names: tuple[str, str] = ("elevens_l", "elevens_r"),
         version: int = 19,
+        one_team: bool = False,
+        trainer: bool = True,
+        synch: bool = True,
         eye: bool = True,
         think_timeout_s: float = 2.0,
         parse: bool = True,
@@ -267,8 +278,13 @@ class RoboCupClient:
             )
         if len(team_names) != 2 or team_names[0] == team_names[1]:
             raise ValueError(f"team_names {team_names!r} must be two different names")
-        for name in team_names:
+        for name in team_names[: 1 if one_team else 2]:
             InitPlayer(name, version)  # validates the name (<= 15 chars of [A-Za-z0-9_+-])
+        if eye and not (trainer and synch):
+            raise ValueError(
+                "eye=True needs the trainer (trainer=True) and synch mode (synch=True): in real "
+                "time the trainer gets no (think) to pace its see_global by"
+            )
         if not (think_timeout_s > 0 and math.isfinite(think_timeout_s)):
             raise ValueError(f"think_timeout_s {think_timeout_s!r} must be a finite number > 0")
         if not (connect_timeout_s > 0 and math.isfinite(connect_timeout_s)):
@@ -276,8 +292,19 @@ class RoboCupClient:
         self.address = address
         self.server = server
         self.n = players_per_team
+        #: (own, other) with ``one_team`` until connected, then (left, right) as always.
         self.team_names = (str(team_names[0]), str(team_names[1]))
         self.version = version
+        self.one_team = bool(one_team)
+        self.trainer = bool(trainer)
+        self.synch = bool(synch)
+        #: The sides this client plays: (0, 1), or the one the server gave ``one_team``.
+        self.sides: tuple[int, ...] = () if one_team else (0, 1)
+        self._own_name = str(team_names[0])
+        self._other_name = str(team_names[1])
+        # A cycle ends with (think) in synch mode; in real time every cycle starts with a
+        # sense_body, so that is where a cycle is cut.
+        self._marker = _THINK if self.synch else _SENSE_BODY
         self.eye = bool(eye)
         self.think_timeout_s = float(think_timeout_s)
         self.connect_timeout_s = float(connect_timeout_s)
@@ -341,13 +368,19 @@ class RoboCupClient:
         if self._connected:
             raise RuntimeError("already connected: call close() first, or reconnect()")
         self._reset_tracking()
-        n2 = 2 * self.n
+        count = (1 if self.one_team else 2) * self.n
         try:
-            self._players = [_Conn(f"{'LR'[i // self.n]}{i % self.n + 1}") for i in range(n2)]
-            self._trainer = _Conn("trainer")
-            self._think_conns = self._players + ([self._trainer] if self.eye else [])
+            self._players = [
+                _Conn(f"{'LR'[i // self.n] if not self.one_team else 'P'}{i % self.n + 1}")
+                for i in range(count)
+            ]
+            self._trainer = _Conn("trainer") if self.trainer else None
+            self._think_conns = self._players + (
+                [self._trainer] if self.eye and self._trainer is not None else []
+            )
             self._init_players()
-            self._init_trainer()
+            if self._trainer is not None:
+                self._init_trainer()
             self._synchronise()
             self._connected = True
             return self._read_cycle()
@@ -390,16 +423,18 @@ class RoboCupClient:
 
     def _init_players(self) -> None:
         host, port = self.address.host, self.address.port
+        names = (self._own_name,) if self.one_team else self.team_names
         for i, conn in enumerate(self._players):
             unum = i % self.n + 1
-            init = InitPlayer(self.team_names[i // self.n], self.version, goalie=unum == 1)
+            init = InitPlayer(names[i // self.n], self.version, goalie=unum == 1)
             # Sent back to back: the server handles them in arrival order, so side l and
             # unums 1..n go to the first team name (checked below).
             conn.sock.sendto(init.encode() + _NUL, (host, port))
         deadline = self._deadline()
+        own_side: str | None = None
         for i, conn in enumerate(self._players):
             side, unum = "lr"[i // self.n], i % self.n + 1
-            what = f"(init {self.team_names[i // self.n]} ...) of player {side} {unum}"
+            what = f"(init {names[i // self.n]} ...) of player {unum}"
             data, addr = self._recv_reply(conn, deadline, what)
             try:
                 msg = parse_message(data)
@@ -410,12 +445,21 @@ class RoboCupClient:
                     f"rcssserver refused {what}: {msg.reason} (is another team or an old "
                     "client still connected?)"
                 )
+            if self.one_team and isinstance(msg, Init):
+                side = own_side = own_side or msg.side  # the server chooses; all the same
             if not isinstance(msg, Init) or (msg.side, msg.unum) != (side, unum):
                 raise ConnectionError(
                     f"expected (init {side} {unum} ...) in reply to {what}, got {data[:80]!r}"
                 )
             conn.sock.connect(addr)
             self._play_mode = msg.play_mode
+        if self.one_team:
+            index = "lr".index(own_side or "l")
+            self.sides = (index,)
+            pair = (self._own_name, self._other_name)
+            self.team_names = pair if index == 0 else (pair[1], pair[0])
+            for i, conn in enumerate(self._players):
+                conn.name = f"{'LR'[index]}{i + 1}"
 
     def _init_trainer(self) -> None:
         trainer = self._trainer
@@ -447,10 +491,9 @@ class RoboCupClient:
     def _synchronise(self) -> None:
         """Answer the (think)s queued while connecting until every client got one in the
         same round, so the next read starts a clean cycle."""
-        conns = [*self._players, self._trainer]
+        conns = [*self._players, *([self._trainer] if self._trainer is not None else [])]
         selector = selectors.DefaultSelector()
         for conn in conns:
-            assert conn is not None
             selector.register(conn.sock, selectors.EVENT_READ)
         deadline = self._deadline()
         stale_before = self.stats.stale_thinks  # (think)s queued during setup are expected
@@ -475,7 +518,8 @@ class RoboCupClient:
                 thought.update(c for c in self._think_conns if c.pending)
                 for conn in self._think_conns:
                     if conn.pending:
-                        self._send(conn, _DONE + _NUL)
+                        if self.synch:
+                            self._send(conn, _DONE + _NUL)
                         conn.pending = False
                 self._absorb_setup(conns)
                 if everyone:
@@ -487,6 +531,7 @@ class RoboCupClient:
     def _absorb_setup(self, conns: Sequence[_Conn | None]) -> None:
         """Take the parameters and referee messages out of setup traffic; drop the rest."""
         first = self._players[0]
+        listener = self._trainer if self._trainer is not None else first
         for conn in conns:
             assert conn is not None
             for data in conn.inbox:
@@ -500,7 +545,7 @@ class RoboCupClient:
                         self.player_types = (*self.player_types, ptype)
                 elif data.startswith(_HEAR):
                     hear = self.parser.parse(data)
-                    if isinstance(hear, Hear) and conn is self._trainer:
+                    if isinstance(hear, Hear) and conn is listener:
                         self._referee([hear])
                 elif data.startswith(b"(error ") or data.startswith(b"(warning "):
                     self._server_error(conn, data)
@@ -520,14 +565,20 @@ class RoboCupClient:
         """
         if not self._connected:
             raise RuntimeError("not connected: call connect() first")
-        n2 = 2 * self.n
-        if len(commands) != n2:
+        count = len(self._players)
+        if len(commands) != count:
             raise ValueError(
-                f"step needs one entry per player ({n2} = 2 x {self.n}), got {len(commands)}"
+                f"step needs one entry per player ({count} = {len(self.sides)} x {self.n}), "
+                f"got {len(commands)}"
             )
         t0 = time.perf_counter()
         payloads = [self._encode(entry) for entry in commands]
-        if t0 - self._last_think_t > self.stale_after_s:
+        if not self.synch:
+            # Cycles that began while the caller thought: counted as late (stale_thinks), and
+            # the command goes out once, for the newest.
+            for conn in self._players:
+                self._drain(conn)
+        elif t0 - self._last_think_t > self.stale_after_s:
             # The server may have stepped without us: answer only the newest (think).
             for conn in self._players:
                 self._drain(conn)
@@ -541,11 +592,13 @@ class RoboCupClient:
                     self._drain(conn)
         try:
             for conn, payload in zip(self._players, payloads, strict=True):
-                if conn.pending:
+                if conn.pending and self.synch:
                     conn.sock.send(payload + _DONE + _NUL)
                     conn.pending = False
                 elif payload:
                     conn.sock.send(payload + _NUL)
+                if not self.synch:
+                    conn.pending = False  # one command per cycle seen; a newer one is late
             trainer = self._trainer
             if self.eye and trainer is not None and trainer.pending:
                 trainer.sock.send(_DONE + _NUL)
@@ -605,6 +658,10 @@ class RoboCupClient:
                 self._drain(conn)
         if not self.eye and self._trainer is not None:
             self._drain(self._trainer)
+        if not self.synch:
+            time.sleep(0.003)  # the cycle's see follows its sense_body
+            for conn in conns:
+                self._drain(conn)
         if not any(c.thought for c in conns):
             timed_out = True
             self._second_chance(conns)
@@ -662,7 +719,7 @@ class RoboCupClient:
                     return False
                 continue
             inbox.append(data)
-            if data.startswith(_THINK):
+            if data.startswith(self._marker):
                 conn.pending = True
                 conn.thought = True
                 return True
@@ -680,7 +737,7 @@ class RoboCupClient:
             except ConnectionRefusedError:
                 raise self._died("refused our datagrams (its ports are closed)") from None
             inbox.append(data)
-            if data.startswith(_THINK):
+            if data.startswith(self._marker):
                 if conn.pending:
                     # A (think) nobody answered is superseded: one (done) answers the newest.
                     self.stats.stale_thinks += 1
@@ -698,8 +755,12 @@ class RoboCupClient:
     # -- building the cycle ---------------------------------------------------------
 
     def _take(self, conn: _Conn) -> list[bytes]:
-        """Hand out the inbox up to its last (think); keep what follows (next cycle)."""
+        """Hand out the inbox up to its last (think); keep what follows (next cycle). In real
+        time a cycle starts with its sense_body: everything queued is handed out."""
         inbox = conn.inbox
+        if not self.synch:
+            conn.inbox = []
+            return inbox
         last = len(inbox) - 1
         while last >= 0 and not inbox[last].startswith(_THINK):
             last -= 1
@@ -717,8 +778,9 @@ class RoboCupClient:
         server_time: int | None = None
         missed = 0
         n = self.n
+        sides = self.sides
         for i, conn in enumerate(self._players):
-            side, unum = i // n, i % n + 1
+            side, unum = sides[i // n], i % n + 1
             if not conn.thought:
                 missed += 1
                 if len(conn.inbox) > _MAX_INBOX:
@@ -931,6 +993,8 @@ class RoboCupClient:
         commands: list[Command] = [ChangeMode("before_kick_off")]
         for side in range(2):
             team = self.team_names[side]
+            if not team:  # another client's team whose name we were not told
+                continue
             for k in range(n):
                 x, y = float(pos[side, k, 0]), float(pos[side, k, 1])
                 commands.append(
@@ -941,7 +1005,7 @@ class RoboCupClient:
             commands.append(Recover())
         commands.append(ChangeMode(play_mode))
         self.send_trainer(*commands)
-        return self.step([None] * (2 * n))
+        return self.step([None] * len(self._players))
 
     # -- errors and shutdown -------------------------------------------------------
 

@@ -305,8 +305,8 @@ def entities_from_see(
         elif obj.kind == "player" and not obj.close:
             if obj.team == team_names[team]:
                 mate = True
-            elif obj.team == team_names[1 - team]:
-                mate = False
+            elif obj.team == team_names[1 - team] or (obj.team and not team_names[1 - team]):
+                mate = False  # an unnamed opponent team: any other named team
             else:
                 dropped += 1
                 continue

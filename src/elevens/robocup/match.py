@@ -1,0 +1,357 @@
+"""Full RoboCup matches: rcssserver with the referee, two teams, N matches, a score table.
+
+``play_matches(team0, team1, matches=N)`` starts one rcssserver per match with regulation
+options (:data:`MATCH_OPTIONS`: referee, auto mode, two halves of ``half_time`` cycles, fouls
+on; synch or real-time mode), starts the left team and waits until all its players are in (the
+first team to connect gets the left side), then the right team, and waits for the server to end
+the game. Each team is an elevens team (a spec as ``elevens robocup play`` takes it, run as
+``elevens robocup team`` in a child process) or another team's start command
+(:class:`ExternalTeam`, e.g. helios-base's ``start.sh``), with ``{host}``, ``{port}`` and
+``{team}`` filled in. The score comes from the server's own "Score: L - R" line.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import json
+import math
+import os
+import re
+import shlex
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from elevens.robocup.server import ServerProcess
+
+__all__ = [
+    "MATCH_OPTIONS",
+    "ElevensTeam",
+    "ExternalTeam",
+    "MatchResult",
+    "MatchSummary",
+    "play_match",
+    "play_matches",
+    "summarize",
+]
+
+#: Regulation options over the training defaults (rcssserver 19 names). The referee, fouls and
+#: drop balls are back; time keeping and auto mode end the game by themselves.
+MATCH_OPTIONS: dict[str, str] = {
+    "server::coach_w_referee": "false",
+    "server::coach": "false",
+    "server::auto_mode": "true",
+    # Cycles auto mode waits for both teams before kicking off an empty game regardless: a
+    # team that compiles first must never find the game started without it.
+    "server::connect_wait": "1000000",
+    "server::kick_off_wait": "20",
+    "server::game_over_wait": "20",
+    "server::half_time": "300",
+    "server::nr_normal_halfs": "2",
+    "server::nr_extra_halfs": "0",
+    "server::penalty_shoot_outs": "false",
+    "server::drop_ball_time": "100",
+    "server::foul_detect_probability": "0.5",
+    "server::synch_mode": "true",
+}
+_SCORE = re.compile(r"Score:\s*(\d+)\s*-\s*(\d+)")
+_CONNECTED = re.compile(r"A new \(v\d+\) player \((\S+) (\d+)\) connected\.")
+
+
+@dataclasses.dataclass(frozen=True)
+class ElevensTeam:
+    """An elevens team: ``spec`` as ``elevens robocup team`` takes it."""
+
+    spec: str
+    name: str = "elevens"
+
+    def command(self, host: str, port: int, players: int, synch: bool) -> list[str]:
+        args = [
+            sys.executable, "-m", "elevens", "robocup", "team", "--team", self.spec,
+            "--host", host, "--port", str(port), "--team-name", self.name,
+            "--players", str(players), "--json",
+        ]
+        return args + ([] if synch else ["--real-time"])
+
+
+@dataclasses.dataclass(frozen=True)
+class ExternalTeam:
+    """Another team's binaries: a shell command started in its own process group, with
+    ``{host}``, ``{port}`` and ``{team}`` replaced (e.g. ``start.sh -p {port} -t {team}``)."""
+
+    cmd: str
+    name: str = "external"
+
+    def command(self, host: str, port: int, players: int, synch: bool) -> list[str]:
+        text = self.cmd.format(host=host, port=port, team=self.name)
+        return ["/bin/sh", "-c", text]
+
+
+Team = ElevensTeam | ExternalTeam
+
+
+@dataclasses.dataclass(frozen=True)
+class MatchResult:
+    match: int
+    names: tuple[str, str]  # left, right team names
+    score: tuple[int, int]  # left, right goals
+    wall_s: float
+    server_cycles: int  # the server's clock at the end (6000 for a regulation match)
+    missed_cycles: int  # "Someone missed a cycle" lines in the server's log (synch mode)
+    log_dir: str | None  # where the .rcg/.rcl went, when logging was on
+    teams: tuple[dict[str, Any] | None, dict[str, Any] | None] = (None, None)
+    """Each elevens team's own report (robocup.team.TeamResult: late cycles, catches, ...)."""
+
+    @property
+    def difference(self) -> int:
+        """Left goals minus right goals."""
+        return self.score[0] - self.score[1]
+
+
+@dataclasses.dataclass(frozen=True)
+class MatchSummary:
+    names: tuple[str, str]
+    matches: int
+    wins: int  # of the left team (team0)
+    draws: int
+    losses: int
+    goals_for: float  # mean per match, team0
+    goals_against: float
+    difference: float  # mean score difference, team0 minus team1
+    difference_ci: tuple[float, float]  # 95% bootstrap interval of the mean difference
+
+    def line(self) -> str:
+        low, high = self.difference_ci
+        return (
+            f"{self.names[0]} v {self.names[1]}: {self.matches} matches, W/D/L "
+            f"{self.wins}/{self.draws}/{self.losses}, goals {self.goals_for:.2f} - "
+            f"{self.goals_against:.2f}, score difference {self.difference:+.2f} "
+            f"[{low:+.2f}, {high:+.2f}]"
+        )
+
+
+def summarize(results: Sequence[MatchResult], *, seed: int = 0) -> MatchSummary:
+    """W/D/L of the left team and its mean score difference with a 95% bootstrap interval."""
+    if not results:
+        raise ValueError("no matches to summarize")
+    diff = np.array([r.difference for r in results], np.float64)
+    if len(diff) > 1:
+        rng = np.random.default_rng(seed)
+        means = diff[rng.integers(0, len(diff), (10_000, len(diff)))].mean(axis=1)
+        ci = (float(np.percentile(means, 2.5)), float(np.percentile(means, 97.5)))
+    else:
+        ci = (math.nan, math.nan)
+    return MatchSummary(
+        names=results[0].names,
+        matches=len(results),
+        wins=int((diff > 0).sum()),
+        draws=int((diff == 0).sum()),
+        losses=int((diff < 0).sum()),
+        goals_for=float(np.mean([r.score[0] for r in results])),
+        goals_against=float(np.mean([r.score[1] for r in results])),
+        difference=float(diff.mean()),
+        difference_ci=ci,
+    )
+
+
+def _connected(log_text: str, name: str) -> int:
+    return sum(1 for m in _CONNECTED.finditer(log_text) if m.group(1) == name)
+
+
+def _read(path: Path) -> str:
+    try:
+        return path.read_text(errors="replace")
+    except FileNotFoundError:
+        return ""
+
+
+def _stop_group(proc: subprocess.Popen[bytes]) -> None:
+    """SIGTERM the team's process group (start.sh leaves its players in the background),
+    then SIGKILL what is left."""
+    for sig, wait in ((signal.SIGTERM, 5.0), (signal.SIGKILL, 5.0)):
+        try:
+            os.killpg(proc.pid, sig)
+        except ProcessLookupError:
+            return
+        try:
+            proc.wait(wait)
+            # The leader is gone; its background children may not be.
+            os.killpg(proc.pid, signal.SIGKILL)
+        except (subprocess.TimeoutExpired, ProcessLookupError):
+            continue
+        return
+
+
+def play_match(
+    team0: Team,
+    team1: Team,
+    *,
+    match: int = 0,
+    players_per_team: int = 11,
+    synch: bool = True,
+    half_time: int = 300,
+    log_dir: str | os.PathLike[str] | None = None,
+    rcssserver: str | None = None,
+    connect_timeout_s: float = 180.0,
+    match_timeout_s: float = 3600.0,
+) -> MatchResult:
+    """One match (module docstring). ``log_dir``: keep the server's .rcg/.rcl game logs and
+    its stdout there (None: no game logs). Raises RuntimeError naming the team that did not
+    connect or the server's log tail when the game did not end properly."""
+    if team0.name == team1.name:
+        raise ValueError(f"both teams are named {team0.name!r}: the server needs two names")
+    options = dict(MATCH_OPTIONS)
+    options["server::synch_mode"] = "true" if synch else "false"
+    options["server::half_time"] = str(half_time)
+    work = Path(tempfile.mkdtemp(prefix="elevens-match-"))
+    if log_dir is not None:
+        game_logs = Path(log_dir) / f"match_{match:03d}"
+        game_logs.mkdir(parents=True, exist_ok=True)
+        options.update({
+            "server::game_logging": "true", "server::text_logging": "true",
+            "server::game_log_dir": str(game_logs.resolve()),
+            "server::text_log_dir": str(game_logs.resolve()),
+        })
+        log_path = game_logs / "rcssserver.log"
+    else:
+        game_logs = None
+        log_path = work / "rcssserver.log"
+    server = ServerProcess(rcssserver, options=options, log_path=log_path)
+    procs: list[subprocess.Popen[bytes]] = []
+    began = time.perf_counter()
+    try:
+        server.start()
+        address = server.address
+        for team in (team0, team1):
+            out = open(work / f"{team.name}.log", "wb")  # noqa: SIM115 - closed with the process
+            procs.append(subprocess.Popen(
+                team.command(address.host, address.port, players_per_team, synch),
+                stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                start_new_session=True,
+            ))
+            out.close()
+            _wait_connected(server, log_path, team, players_per_team, procs[-1], work,
+                            connect_timeout_s)
+        deadline = time.monotonic() + match_timeout_s
+        while server.alive and time.monotonic() < deadline:
+            time.sleep(0.2)
+        if server.alive:
+            raise RuntimeError(f"the match did not end within {match_timeout_s:g} s")
+        text = _read(log_path)
+        score = _SCORE.search(text)
+        if score is None:
+            raise RuntimeError(
+                f"rcssserver ended without a score line:\n{server.last_log_tail or text[-2000:]}"
+            )
+        times = [int(t) for t in re.findall(r"missed a cycle at (\d+)", text)]
+        for proc in procs:  # an elevens team prints its report as it leaves
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                proc.wait(10.0)
+        reports = tuple(_team_report(work / f"{team.name}.log") for team in (team0, team1))
+        return MatchResult(
+            match=match,
+            names=(team0.name, team1.name),
+            score=(int(score.group(1)), int(score.group(2))),
+            wall_s=time.perf_counter() - began,
+            server_cycles=20 * half_time,  # half_time counts tenths of a 100-cycle second
+            missed_cycles=len(times),
+            log_dir=str(game_logs) if game_logs is not None else None,
+            teams=(reports[0], reports[1]),
+        )
+    finally:
+        for proc in procs:
+            _stop_group(proc)
+        server.stop()
+        if log_dir is not None:  # keep the teams' output beside the game logs
+            for path in work.glob("*.log"):
+                if path.name != "rcssserver.log":
+                    shutil.copy(path, Path(log_dir) / f"match_{match:03d}" / path.name)
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def _team_report(path: Path) -> dict[str, Any] | None:
+    """The JSON line an elevens team prints at the end of its match (None: not one)."""
+    for line in reversed(_read(path).splitlines()):
+        if line.startswith("{"):
+            try:
+                report = json.loads(line)
+            except json.JSONDecodeError:
+                return None
+            return report if isinstance(report, dict) else None
+    return None
+
+
+def _wait_connected(
+    server: ServerProcess,
+    log_path: Path,
+    team: Team,
+    players: int,
+    proc: subprocess.Popen[bytes],
+    work: Path,
+    timeout_s: float,
+) -> None:
+    deadline = time.monotonic() + timeout_s
+    while _connected(_read(log_path), team.name) < players:
+        if proc.poll() is not None and isinstance(team, ElevensTeam):
+            tail = _read(work / f"{team.name}.log")[-2000:]
+            raise RuntimeError(f"team {team.name!r} exited before connecting:\n{tail}")
+        if not server.alive:
+            raise RuntimeError(f"rcssserver exited while {team.name!r} connected")
+        if time.monotonic() > deadline:
+            tail = _read(work / f"{team.name}.log")[-2000:]
+            raise RuntimeError(
+                f"team {team.name!r} connected {_connected(_read(log_path), team.name)} of "
+                f"{players} players within {timeout_s:g} s; its output:\n{tail}"
+            )
+        time.sleep(0.1)
+
+
+def play_matches(
+    team0: Team,
+    team1: Team,
+    *,
+    matches: int = 1,
+    print_fn: Callable[[str], None] = print,
+    results_path: str | os.PathLike[str] | None = None,
+    **kwargs: Any,
+) -> list[MatchResult]:
+    """``matches`` matches (sides kept: team0 always left); one line printed per match, one
+    JSON line appended per match to ``results_path``."""
+    if matches < 1:
+        raise ValueError(f"matches={matches!r} is invalid: it must be >= 1")
+    results = []
+    for m in range(matches):
+        result = play_match(team0, team1, match=m, **kwargs)
+        results.append(result)
+        print_fn(
+            f"match {m}: {result.names[0]} {result.score[0]} - {result.score[1]} "
+            f"{result.names[1]} ({result.wall_s:.0f} s, missed cycles {result.missed_cycles})"
+        )
+        if results_path is not None:
+            with open(results_path, "a") as f:
+                f.write(json.dumps(dataclasses.asdict(result)) + "\n")
+    return results
+
+
+def parse_team(spec: str | None, cmd: str | None, name: str) -> Team:
+    """--teamN / --teamN-cmd / --teamN-name as a Team; exactly one of spec and cmd."""
+    if (spec is None) == (cmd is None):
+        raise ValueError(
+            f"give a team ({name}) as an elevens team (--team0/--team1: naive, random, a shipped "
+            "name or a checkpoint) or as a start command (--team0-cmd/--team1-cmd), not both"
+        )
+    if cmd is not None:
+        if not shlex.split(cmd):
+            raise ValueError("the team's start command is empty")
+        return ExternalTeam(cmd, name)
+    assert spec is not None
+    return ElevensTeam(spec, name)

@@ -1,0 +1,224 @@
+"""Playing by the rules in a real match: kick-off formation, set pieces, the goalie's catch.
+
+A policy trained in elevens knows play_on only: the simulator has no referee stoppages, and its
+keeper has no hands. In rcssserver the referee stops play for kick-offs, kick-ins, corners, free
+kicks and goal kicks, and the server ignores a kick by the team that does not have the set
+piece. :func:`apply_rules` takes the policy's commands for one team and one cycle and replaces
+some of them with short scripted routines, then hands back to the policy when play resumes:
+
+* **before_kick_off, after a goal, at half time**: every player ``(move)``-s to its formation
+  slot in its own half (the simulator's formation, scaled to 105 x 68); the kick-off taker
+  stands at the ball when its side kicks off.
+* **our set piece** (kick_off, kick_in, corner_kick, free_kick, goal_kick, indirect_free_kick):
+  the player nearest the ball (the goalie when it holds the ball after a catch) turns to it,
+  runs to it and kicks: at the goal from within ``SHOOT_RANGE`` of it, a pass back to a
+  midfield slot at kick-off, else a long ball up the wing. Everybody else plays the policy.
+* **the goalie catches** in play_on: the ball fresh in its latest see, within the catchable
+  area (1.2 m along the catch direction) and the goalie inside its penalty area: ``(catch)``.
+
+Frames as elevens.robocup.observe: each team's own frame (x towards the opponent goal, y up,
+radians, + = to the left); server commands in degrees with + = clockwise.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from elevens.env.params import formation
+from elevens.robocup.observe import FIELD_LENGTH, FIELD_WIDTH
+from elevens.robocup.protocol import Catch, Command, Dash, Kick, Move, Turn
+
+__all__ = [
+    "CATCH_REACH",
+    "SHOOT_RANGE",
+    "TeamView",
+    "apply_rules",
+    "kick_off_positions",
+    "kicks_off_next",
+    "mode_kind",
+]
+
+CATCH_REACH = 1.15  # metres: server::catchable_area_l = 1.2, less the see's quantisation
+SHOOT_RANGE = 30.0  # metres to the opponent goal within which a set piece is a shot
+KICKABLE = 1.085  # player_size + ball_size + kickable_margin of the default player type
+PENALTY_AREA = (36.0, 20.16)  # |x| from, |y| up to (the penalty box flags)
+_HALF = np.array([FIELD_LENGTH / 2, FIELD_WIDTH / 2])
+_SIM_FIELD = np.array([50.0, 35.0])  # the simulator's default half extents (formation slots)
+_TURN_FIRST = math.radians(12.0)  # a taker further off its line to the ball turns first
+_BALL_DECAY = 0.94  # server::ball_decay
+_KICK_POWER_RATE = 0.027  # server::kick_power_rate
+# Set pieces that the side named by the suffix takes.
+SET_PIECES = (
+    "kick_off",
+    "kick_in",
+    "corner_kick",
+    "free_kick",
+    "goal_kick",
+    "indirect_free_kick",
+)
+MOVE_MODES = ("before_kick_off", "goal_l", "goal_r")
+
+
+def mode_kind(play_mode: str, side: int) -> str:
+    """What a play mode asks of ``side`` (0 left, 1 right): "move" (go to the kick-off
+    formation), "ours" (our set piece), "theirs" (theirs: the policy plays, the server keeps us
+    away from the ball), "play" (play_on and the rest), "over" (time_over)."""
+    if play_mode == "time_over":
+        return "over"
+    if play_mode in MOVE_MODES:
+        return "move"
+    for piece in SET_PIECES:
+        if play_mode.startswith(piece + "_") and play_mode[-1] in "lr":
+            return "ours" if play_mode[-1] == "lr"[side] else "theirs"
+    return "play"
+
+
+def kicks_off_next(play_mode: str, side: int, halves_played: int) -> bool:
+    """Whether ``side`` takes the next kick-off, judged in a "move" mode: the side that
+    conceded after a goal; else left in odd halves, right in even ones (rcssserver
+    alternates)."""
+    if play_mode in ("goal_l", "goal_r"):
+        return play_mode[-1] != "lr"[side]
+    return halves_played % 2 == side
+
+
+def kick_off_positions(players_per_team: int, *, taker: bool) -> np.ndarray:
+    """The kick-off formation f64[n, 2] in the team's own frame, all in the own half; with
+    ``taker`` the player whose slot is nearest the centre stands at the ball."""
+    slots = formation(players_per_team) * (_HALF / _SIM_FIELD)
+    slots[:, 0] = np.minimum(slots[:, 0], -1.0)
+    if taker:
+        slots[kick_off_taker(players_per_team)] = (-0.4, 0.0)
+    return slots
+
+
+def kick_off_taker(players_per_team: int) -> int:
+    """The player (index) whose formation slot is nearest the centre spot."""
+    slots = formation(players_per_team)
+    return int(np.argmin(np.hypot(slots[:, 0], slots[:, 1])))
+
+
+@dataclasses.dataclass(frozen=True)
+class TeamView:
+    """What one team knows in one cycle, from its players' percepts (own frame, metres).
+
+    ``ball_seen`` bool[n]: the ball is in the player's latest see; ``ball_distance`` f[n] and
+    ``ball_bearing`` f[n] (radians, + = left of the body) from it; ``stale`` i[n]: cycles since
+    that see (0: this cycle).
+    """
+
+    position: np.ndarray
+    heading: np.ndarray
+    ball_seen: np.ndarray
+    ball_distance: np.ndarray
+    ball_bearing: np.ndarray
+    stale: np.ndarray
+
+    def ball_position(self, player: int) -> np.ndarray:
+        """Where ``player`` saw the ball, in the team frame."""
+        angle = self.heading[player] + self.ball_bearing[player]
+        d = self.ball_distance[player]
+        return self.position[player] + d * np.array([math.cos(angle), math.sin(angle)])
+
+
+def _degrees_clockwise(bearing: float) -> float:
+    """A bearing (radians, + = left) as a server direction (degrees, + = clockwise)."""
+    return -math.degrees(math.atan2(math.sin(bearing), math.cos(bearing)))
+
+
+def _kick_to(view: TeamView, player: int, target: np.ndarray, power: float) -> Kick:
+    delta = target - view.position[player]
+    bearing = math.atan2(delta[1], delta[0]) - view.heading[player]
+    return Kick(float(power), _degrees_clockwise(bearing))
+
+
+def _pass_power(distance: float) -> float:
+    """Kick power that rolls the ball about ``distance`` metres (it decays by 0.94 a cycle)."""
+    return float(np.clip(distance * (1 - _BALL_DECAY) / _KICK_POWER_RATE + 15.0, 20.0, 100.0))
+
+
+def _set_piece_kick(view: TeamView, player: int, play_mode: str, n: int) -> Kick:
+    goal = np.array([_HALF[0], 0.0])
+    ball = view.ball_position(player)
+    if np.linalg.norm(goal - ball) < SHOOT_RANGE:
+        aim = goal + np.array([0.0, -3.5 if ball[1] > 0 else 3.5])  # the far post's side
+        return _kick_to(view, player, aim, 100.0)
+    if play_mode.startswith("kick_off") and n > 1:
+        target = np.array([-12.0, 8.0 if view.position[player][1] <= 0 else -8.0])
+        return _kick_to(view, player, target, _pass_power(float(np.linalg.norm(target - ball))))
+    wing = np.array([min(ball[0] + 30.0, 40.0), 24.0 if ball[1] >= 0 else -24.0])
+    return _kick_to(view, player, wing, 100.0)
+
+
+def _go_to_ball(view: TeamView, player: int) -> Command:
+    bearing = float(view.ball_bearing[player])
+    if abs(bearing) > _TURN_FIRST:
+        return Turn(_degrees_clockwise(bearing))
+    return Dash(100.0 if view.ball_distance[player] > 3.0 else 50.0)
+
+
+def set_piece_taker(view: TeamView) -> int | None:
+    """The player nearest the ball among those who see it; None when nobody does."""
+    seen = np.flatnonzero(view.ball_seen)
+    if len(seen) == 0:
+        return None
+    return int(seen[np.argmin(view.ball_distance[seen])])
+
+
+def _in_own_penalty_area(position: np.ndarray) -> bool:
+    return bool(position[0] <= -PENALTY_AREA[0] and abs(position[1]) <= PENALTY_AREA[1])
+
+
+def apply_rules(
+    commands: Sequence[Command | None],
+    view: TeamView,
+    play_mode: str,
+    side: int,
+    *,
+    halves_played: int = 1,
+    goalie: int | None = 0,
+    catch_allowed: bool = True,
+) -> tuple[list[Command | None], str]:
+    """The policy's ``commands`` (one per player) with the routines of the module docstring
+    applied for ``side`` in ``play_mode``. Returns (commands, what: "move", "set_piece",
+    "catch" or "policy"). ``goalie``: the goalie's index (None: no goalie); ``catch_allowed``:
+    False during the server's catch ban (5 cycles after an attempt)."""
+    n = len(commands)
+    out = list(commands)
+    kind = mode_kind(play_mode, side)
+    if kind == "over":
+        return [None] * n, "move"
+    if kind == "move":
+        ours = kicks_off_next(play_mode, side, halves_played)
+        for i, (x, y) in enumerate(kick_off_positions(n, taker=ours)):
+            out[i] = Move(float(x), float(-y))  # the server's own frame has y down
+        return out, "move"
+    if kind == "ours":
+        holder = goalie is not None and view.ball_seen[goalie] and (
+            view.ball_distance[goalie] <= KICKABLE and play_mode.startswith("free_kick")
+        )
+        taker = goalie if holder else set_piece_taker(view)
+        if taker is None:
+            return out, "policy"
+        if view.ball_distance[taker] <= KICKABLE:
+            out[taker] = _set_piece_kick(view, taker, play_mode, n)
+        else:
+            out[taker] = _go_to_ball(view, taker)
+        return out, "set_piece"
+    if (
+        kind == "play"
+        and play_mode == "play_on"
+        and goalie is not None
+        and catch_allowed
+        and view.ball_seen[goalie]
+        and view.stale[goalie] == 0
+        and view.ball_distance[goalie] <= CATCH_REACH
+        and _in_own_penalty_area(view.position[goalie])
+    ):
+        out[goalie] = Catch(_degrees_clockwise(float(view.ball_bearing[goalie])))
+        return out, "catch"
+    return out, "policy"

@@ -1,0 +1,274 @@
+"""One elevens team in a real rcssserver match: n players of one side, no trainer.
+
+``RoboCupTeam(spec).play(address)`` connects the team's players (the goalie first) to a server
+that someone else runs (``elevens robocup match`` or a competition's), plays until time_over
+and returns the score. Each cycle: the players' percepts go into a PerceptMemory (the same
+observations as RoboCupEnv), the policy acts, its (move, rot) actions become commands by the
+"sim" rule, and elevens.robocup.rules replaces some of them (kick-off formation, set pieces,
+the goalie's catch).
+
+Nothing is compiled after the first connection: :meth:`RoboCupTeam.warm_up` runs every jitted
+function once before ``(init)`` goes out, so the first cycles of a synch-mode match answer
+within the server's 1.25 s and none is skipped. In real-time mode (100 ms cycles) a cycle that
+starts before our command went out is counted as late (``late_cycles``) and logged; the
+command then acts one cycle later and is never sent twice.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+import time
+from collections.abc import Callable
+from typing import Any
+
+import jax
+import numpy as np
+
+from elevens.env.state import Observation
+from elevens.robocup.client import Cycle, RoboCupClient, ServerDied
+from elevens.robocup.env import (
+    RoboCupConfig,
+    kickable_distance,
+    robocup_env_params,
+    sim_actions_to_commands,
+)
+from elevens.robocup.observe import PLAYER_DECAY, PerceptMemory
+from elevens.robocup.play import load_robocup_team
+from elevens.robocup.protocol import ChangeView, Command, ServerParams
+from elevens.robocup.rules import TeamView, apply_rules, kick_off_positions, mode_kind
+from elevens.robocup.server import ServerAddress
+
+__all__ = ["RoboCupTeam", "TeamResult"]
+
+log = logging.getLogger(__name__)
+
+_CATCH_BAN = 5  # server::catch_ban_cycle: cycles between two catch attempts
+# Time left in the observations restarts every this many cycles of play: policies were trained
+# on episodes of about this length and have never seen a 6000-cycle game.
+_DEFAULT_EPISODE = 400
+
+
+@dataclasses.dataclass(frozen=True)
+class TeamResult:
+    """One match from one team's side."""
+
+    team: str
+    side: int  # 0 left, 1 right
+    goals_for: int
+    goals_against: int
+    cycles: int  # cycles this client answered
+    server_time: int  # the server's clock at the end
+    late_cycles: int  # real time: cycles that began before our command went out
+    missed: int  # player-cycles without a (think) / sense_body in time
+    catches: int  # catch commands sent
+    set_piece_cycles: int  # cycles in which a scripted set-piece routine acted
+    wall_s: float
+    warm_up_s: float
+    ended: str  # "time_over", "server_exit" or "stopped"
+
+    def as_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+class RoboCupTeam:
+    """An elevens team (``spec``: naive, random, a shipped name or a checkpoint) that plays
+    one side of a match (see the module docstring)."""
+
+    def __init__(
+        self,
+        spec: str,
+        *,
+        players_per_team: int = 11,
+        team_name: str = "elevens",
+        opponent_name: str = "",
+        synch: bool = True,
+        rules: bool = True,
+        view: str = "wide",
+        deterministic: bool = True,
+        seed: int = 0,
+    ) -> None:
+        self.spec = spec
+        self.config = RoboCupConfig(
+            players_per_team=players_per_team,
+            view=view,
+            episode_length=_DEFAULT_EPISODE,
+            team_names=(team_name, opponent_name or f"{team_name}_opp"),
+        )
+        self.team_name = team_name
+        self.opponent_name = opponent_name
+        self.synch = synch
+        self.rules = rules
+        self.params = robocup_env_params(self.config)
+        self.player = load_robocup_team(spec, "sim", deterministic=deterministic)
+        self.key = jax.random.key(seed)
+        self.warm_up_s = 0.0
+        self._warm = False
+
+    @property
+    def n(self) -> int:
+        return self.config.players_per_team
+
+    def _observation(
+        self, memory: PerceptMemory, side: int, step: int, last: np.ndarray
+    ) -> Observation:
+        n = self.n
+        start = np.zeros((2, n, 2))
+        start[side] = kick_off_positions(n, taker=False)
+        actions = np.zeros((2, n, 2), np.float32)
+        actions[side] = last
+        obs = memory.observation(step % _DEFAULT_EPISODE, actions, start)
+        return jax.tree.map(lambda leaf: leaf[side], obs)
+
+    def warm_up(self) -> float:
+        """Run the policy (and with it every jitted function) once on an empty observation;
+        the seconds it took. Call before connecting."""
+        began = time.perf_counter()
+        memory = PerceptMemory(self.params, self.config.team_names, PLAYER_DECAY)
+        obs = self._observation(memory, 0, 0, np.zeros((self.n, 2), np.float32))
+        carry = self.player.init_carry(self.n)
+        for _ in range(2):  # the second call checks that nothing compiles again
+            carry, actions = self.player.act(carry, obs, self.key)
+            np.asarray(actions)
+        self.warm_up_s = time.perf_counter() - began
+        self._warm = True
+        return self.warm_up_s
+
+    def play(
+        self,
+        address: ServerAddress,
+        *,
+        on_connect: Callable[[int], None] | None = None,
+        max_cycles: int | None = None,
+        step_hook: Callable[[int], None] | None = None,
+    ) -> TeamResult:
+        """Connect, play until time_over (or the server exits, or ``max_cycles``), say bye.
+
+        ``on_connect(side)`` runs once the players are in; ``step_hook(cycle)`` runs before
+        each policy call (tests use it to make a call slow on purpose)."""
+        if not self._warm:
+            self.warm_up()
+        client = RoboCupClient(
+            address,
+            self.n,
+            team_names=self.config.team_names,
+            one_team=True,
+            trainer=False,
+            eye=False,
+            synch=self.synch,
+            think_timeout_s=2.0 if self.synch else 0.5,
+            connect_timeout_s=20.0,
+        )
+        began = time.perf_counter()
+        with client:
+            cycle = client.connect()
+            side = client.sides[0]
+            if on_connect is not None:
+                on_connect(side)
+            return self._loop(client, cycle, side, began, max_cycles, step_hook)
+
+    def _loop(
+        self,
+        client: RoboCupClient,
+        cycle: Cycle,
+        side: int,
+        began: float,
+        max_cycles: int | None,
+        step_hook: Callable[[int], None] | None,
+    ) -> TeamResult:
+        n = self.n
+        memory = PerceptMemory(self.params, client.team_names, PLAYER_DECAY)
+        positions = np.zeros((2, n, 2))
+        positions[side] = kick_off_positions(n, taker=False)
+        memory.reset(positions, np.zeros((2, n)))
+        params = client.server_params
+        kickable = kickable_distance(params if isinstance(params, ServerParams) else None)
+        carry = self.player.init_carry(n)
+        key = self.key
+        last = np.zeros((n, 2), np.float32)
+        counts = dict(cycles=0, catches=0, set_piece=0, missed=0)
+        step = halves = 0
+        last_catch = -_CATCH_BAN
+        previous_mode = cycle.play_mode
+        ended = "stopped"
+        cycle = client.step([ChangeView(self.config.view)] * n)
+        try:
+            while max_cycles is None or counts["cycles"] < max_cycles:
+                memory.update(cycle.players)
+                mode = cycle.play_mode
+                if mode_kind(mode, side) == "over":
+                    ended = "time_over"
+                    break
+                if mode == "before_kick_off" and previous_mode != "before_kick_off":
+                    halves += 1  # half time (the first half is counted from the start)
+                if mode.startswith("kick_off"):
+                    step = 0
+                previous_mode = mode
+                if step_hook is not None:
+                    step_hook(counts["cycles"])
+                key, act_key = jax.random.split(key)
+                obs = self._observation(memory, side, step, last)
+                carry, actions = self.player.act(carry, obs, act_key)
+                last = np.clip(np.asarray(actions, np.float32), -1.0, 1.0)
+                commands: list[Command | None] = list(
+                    sim_actions_to_commands(last, memory.ball_distance[side], kickable=kickable)
+                )
+                what = "policy"
+                if self.rules:
+                    view = _team_view(memory, side)
+                    commands, what = apply_rules(
+                        commands,
+                        view,
+                        mode,
+                        side,
+                        halves_played=max(halves, 1),
+                        catch_allowed=counts["cycles"] - last_catch >= _CATCH_BAN,
+                    )
+                if what == "catch":
+                    counts["catches"] += 1
+                    last_catch = counts["cycles"]
+                counts["set_piece"] += what == "set_piece"
+                cycle = client.step(commands)
+                counts["cycles"] += 1
+                counts["missed"] += cycle.missed
+                step += 1
+        except ServerDied:
+            ended = "server_exit"  # auto_mode exits the server after the game
+        goals = client.score
+        return TeamResult(
+            team=self.player.name,
+            side=side,
+            goals_for=goals[side],
+            goals_against=goals[1 - side],
+            cycles=counts["cycles"],
+            server_time=int(cycle.server_time),
+            late_cycles=int(client.stats.stale_thinks),
+            missed=counts["missed"],
+            catches=counts["catches"],
+            set_piece_cycles=counts["set_piece"],
+            wall_s=time.perf_counter() - began,
+            warm_up_s=self.warm_up_s,
+            ended=ended,
+        )
+
+
+def _team_view(memory: PerceptMemory, side: int) -> TeamView:
+    """One team's row of the memory as rules.TeamView (ball from the latest see)."""
+    ball = memory.entities[side, :, -1, :]
+    seen = memory.mask[side, :, -1]
+    bearing = np.arctan2(ball[:, 2], ball[:, 1])
+    distance = np.where(seen, ball[:, 0] * memory.params.field_length, np.inf)
+    close = np.isfinite(memory.ball_distance[side]) & ~seen
+    # A ball only felt close behind ((B) outside the cone): its distance, bearing unknown (pi).
+    distance = np.where(close, memory.ball_distance[side], distance)
+    bearing = np.where(close, math.pi, bearing)
+    return TeamView(
+        position=memory.position[side].copy(),
+        heading=memory.heading[side].copy(),
+        ball_seen=seen | close,
+        ball_distance=distance,
+        ball_bearing=bearing,
+        stale=memory.stale[side].copy(),
+    )
+

@@ -245,6 +245,7 @@ class FakeServer:
                 self._trainer_command(peer, text)
             elif text.startswith("(bye)"):
                 peer.gone = True
+                peer.awaiting = False  # rcssserver stops waiting for a player that left
 
     def _player_init(self, text: str, addr: Any) -> None:
         if self.refuse is not None:

@@ -127,6 +127,10 @@ class RoboCupMatchArgs:
     """Left team's name in the server (at most 15 of A-Z a-z 0-9 _ + -)."""
     team1_name: str = "opponent"
     """Right team's name in the server (different from --team0-name)."""
+    team0_turn_scale: float = 180.0
+    """Left elevens team: turn moment in degrees at rot = 1 (22.9: the simulator's rate)."""
+    team1_turn_scale: float = 180.0
+    """Right elevens team, as --team0-turn-scale."""
     matches: int = 1
     """Matches to play (a new server for each)."""
     players: int = 11
@@ -165,6 +169,8 @@ class RoboCupTeamArgs:
     no_rules: bool = False
     """Let the policy play set pieces too (no kick-off formation, set-piece routines or
     goalie catch)."""
+    turn_scale: float = 180.0
+    """Turn moment in degrees at rot = 1 (22.9 turns at the simulator's rate)."""
     json: bool = False
     """Print the result as one JSON object."""
 
@@ -280,8 +286,9 @@ def match(args: RoboCupMatchArgs) -> None:
     binary = find_rcssserver(args.rcssserver)
     try:
         team0 = parse_team(args.team0 if args.team0_cmd is None else None, args.team0_cmd,
-                           args.team0_name)
-        team1 = parse_team(args.team1, args.team1_cmd, args.team1_name)
+                           args.team0_name, turn_scale=args.team0_turn_scale)
+        team1 = parse_team(args.team1, args.team1_cmd, args.team1_name,
+                           turn_scale=args.team1_turn_scale)
         if args.team0_name == args.team1_name:
             raise ValueError(
                 f"--team0-name and --team1-name are both {args.team0_name!r}: the server "
@@ -310,7 +317,7 @@ def team(args: RoboCupTeamArgs) -> None:
 
     player = RoboCupTeam(
         args.team, players_per_team=args.players, team_name=args.team_name,
-        synch=not args.real_time, rules=not args.no_rules,
+        synch=not args.real_time, rules=not args.no_rules, turn_scale=args.turn_scale,
     )
     seconds = player.warm_up()
     if not args.json:
@@ -329,7 +336,8 @@ def team(args: RoboCupTeamArgs) -> None:
         print(
             f"{args.team_name} ({result.team}, {'left' if result.side == 0 else 'right'}): "
             f"{result.goals_for} - {result.goals_against} after {result.cycles} cycles "
-            f"({result.ended}; late cycles {result.late_cycles}, catches {result.catches})"
+            f"({result.ended}; late player-cycles {result.late_player_cycles}, "
+            f"catches {result.catches})"
         )
 
 

@@ -73,12 +73,13 @@ class ElevensTeam:
 
     spec: str
     name: str = "elevens"
+    turn_scale: float = 180.0
 
     def command(self, host: str, port: int, players: int, synch: bool) -> list[str]:
         args = [
             sys.executable, "-m", "elevens", "robocup", "team", "--team", self.spec,
             "--host", host, "--port", str(port), "--team-name", self.name,
-            "--players", str(players), "--json",
+            "--players", str(players), "--turn-scale", str(self.turn_scale), "--json",
         ]
         return args + ([] if synch else ["--real-time"])
 
@@ -86,13 +87,14 @@ class ElevensTeam:
 @dataclasses.dataclass(frozen=True)
 class ExternalTeam:
     """Another team's binaries: a shell command started in its own process group, with
-    ``{host}``, ``{port}`` and ``{team}`` replaced (e.g. ``start.sh -p {port} -t {team}``)."""
+    ``{host}``, ``{port}`` (players), ``{coach_port}`` (online coach) and ``{team}`` replaced
+    (e.g. ``start.sh -p {port} -P {coach_port} -t {team}``)."""
 
     cmd: str
     name: str = "external"
 
     def command(self, host: str, port: int, players: int, synch: bool) -> list[str]:
-        text = self.cmd.format(host=host, port=port, team=self.name)
+        text = self.cmd.format(host=host, port=port, coach_port=port + 2, team=self.name)
         return ["/bin/sh", "-c", text]
 
 
@@ -256,6 +258,13 @@ def play_match(
         for proc in procs:  # an elevens team prints its report as it leaves
             with contextlib.suppress(subprocess.TimeoutExpired):
                 proc.wait(10.0)
+        for team, proc in zip((team0, team1), procs, strict=True):
+            if isinstance(team, ElevensTeam) and proc.returncode not in (0, None):
+                tail = _read(work / f"{team.name}.log")[-2000:]
+                raise RuntimeError(
+                    f"team {team.name!r} failed during the match (status {proc.returncode}):"
+                    f"\n{tail}"
+                )
         reports = tuple(_team_report(work / f"{team.name}.log") for team in (team0, team1))
         return MatchResult(
             match=match,
@@ -342,7 +351,9 @@ def play_matches(
     return results
 
 
-def parse_team(spec: str | None, cmd: str | None, name: str) -> Team:
+def parse_team(
+    spec: str | None, cmd: str | None, name: str, *, turn_scale: float = 180.0
+) -> Team:
     """--teamN / --teamN-cmd / --teamN-name as a Team; exactly one of spec and cmd."""
     if (spec is None) == (cmd is None):
         raise ValueError(
@@ -354,4 +365,4 @@ def parse_team(spec: str | None, cmd: str | None, name: str) -> Team:
             raise ValueError("the team's start command is empty")
         return ExternalTeam(cmd, name)
     assert spec is not None
-    return ElevensTeam(spec, name)
+    return ElevensTeam(spec, name, turn_scale)

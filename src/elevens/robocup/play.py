@@ -50,10 +50,13 @@ class _Player:
     init_carry: Callable[[int], Any]
 
 
-def load_robocup_team(spec: str, action: str, *, deterministic: bool = True) -> _Player:
-    """A team for RoboCupEnv from a spec (see the module docstring)."""
+def load_robocup_team(
+    spec: str, action: str, *, deterministic: bool = True, turn_scale: float = 180.0
+) -> _Player:
+    """A team for RoboCupEnv from a spec (see the module docstring). ``turn_scale``: the
+    env's RoboCupConfig.turn_scale, which the naive team aims its turns by."""
     if spec == "naive":
-        naive = RoboCupNaiveTeam(action=action)
+        naive = RoboCupNaiveTeam(action=action, turn_scale=turn_scale)
         return _Player("naive", lambda c, o, k: naive.act(None, c, o, k), naive.init_carry)
     if spec == "random":
         size = 2 if action == "sim" else 12

@@ -79,11 +79,11 @@ def mode_kind(play_mode: str, side: int) -> str:
 
 def kicks_off_next(play_mode: str, side: int, halves_played: int) -> bool:
     """Whether ``side`` takes the next kick-off, judged in a "move" mode: the side that
-    conceded after a goal; else left in odd halves, right in even ones (rcssserver
-    alternates)."""
+    conceded after a goal; else left in the first half (``halves_played`` = 1), right in the
+    second, and so on (rcssserver alternates)."""
     if play_mode in ("goal_l", "goal_r"):
         return play_mode[-1] != "lr"[side]
-    return halves_played % 2 == side
+    return (halves_played - 1) % 2 == side
 
 
 def kick_off_positions(players_per_team: int, *, taker: bool) -> np.ndarray:
@@ -217,6 +217,7 @@ def apply_rules(
         and view.ball_seen[goalie]
         and view.stale[goalie] == 0
         and view.ball_distance[goalie] <= CATCH_REACH
+        and abs(view.ball_bearing[goalie]) <= math.pi / 2  # the server's catch range: +-90
         and _in_own_penalty_area(view.position[goalie])
     ):
         out[goalie] = Catch(_degrees_clockwise(float(view.ball_bearing[goalie])))

@@ -10,7 +10,7 @@ the goalie's catch).
 Nothing is compiled after the first connection: :meth:`RoboCupTeam.warm_up` runs every jitted
 function once before ``(init)`` goes out, so the first cycles of a synch-mode match answer
 within the server's 1.25 s and none is skipped. In real-time mode (100 ms cycles) a cycle that
-starts before our command went out is counted as late (``late_cycles``) and logged; the
+starts before a player's command went out is counted as late (``late_player_cycles``); the
 command then acts one cycle later and is never sent twice.
 """
 
@@ -60,7 +60,7 @@ class TeamResult:
     goals_against: int
     cycles: int  # cycles this client answered
     server_time: int  # the server's clock at the end
-    late_cycles: int  # real time: cycles that began before our command went out
+    late_player_cycles: int  # real time: player-cycles that began before its command went out
     missed: int  # player-cycles without a (think) / sense_body in time
     catches: int  # catch commands sent
     set_piece_cycles: int  # cycles in which a scripted set-piece routine acted
@@ -87,6 +87,7 @@ class RoboCupTeam:
         rules: bool = True,
         view: str = "wide",
         deterministic: bool = True,
+        turn_scale: float = 180.0,
         seed: int = 0,
     ) -> None:
         self.spec = spec
@@ -95,13 +96,16 @@ class RoboCupTeam:
             view=view,
             episode_length=_DEFAULT_EPISODE,
             team_names=(team_name, opponent_name or f"{team_name}_opp"),
+            turn_scale=turn_scale,
         )
         self.team_name = team_name
         self.opponent_name = opponent_name
         self.synch = synch
         self.rules = rules
         self.params = robocup_env_params(self.config)
-        self.player = load_robocup_team(spec, "sim", deterministic=deterministic)
+        self.player = load_robocup_team(
+            spec, "sim", deterministic=deterministic, turn_scale=turn_scale
+        )
         self.key = jax.random.key(seed)
         self.warm_up_s = 0.0
         self._warm = False
@@ -188,11 +192,14 @@ class RoboCupTeam:
         key = self.key
         last = np.zeros((n, 2), np.float32)
         counts = dict(cycles=0, catches=0, set_piece=0, missed=0)
-        step = halves = 0
+        step = 0
+        halves = 1  # the half being played (before_kick_off again: the next one)
         last_catch = -_CATCH_BAN
         previous_mode = cycle.play_mode
         ended = "stopped"
         cycle = client.step([ChangeView(self.config.view)] * n)
+        cycle = client.step([None] * n)  # real time: the sensors queued while connecting
+        setup_late = client.stats.stale_thinks
         try:
             while max_cycles is None or counts["cycles"] < max_cycles:
                 memory.update(cycle.players)
@@ -201,7 +208,7 @@ class RoboCupTeam:
                     ended = "time_over"
                     break
                 if mode == "before_kick_off" and previous_mode != "before_kick_off":
-                    halves += 1  # half time (the first half is counted from the start)
+                    halves += 1  # half time
                 if mode.startswith("kick_off"):
                     step = 0
                 previous_mode = mode
@@ -212,7 +219,12 @@ class RoboCupTeam:
                 carry, actions = self.player.act(carry, obs, act_key)
                 last = np.clip(np.asarray(actions, np.float32), -1.0, 1.0)
                 commands: list[Command | None] = list(
-                    sim_actions_to_commands(last, memory.ball_distance[side], kickable=kickable)
+                    sim_actions_to_commands(
+                        last,
+                        memory.ball_distance[side],
+                        kickable=kickable,
+                        turn_scale=self.config.turn_scale,
+                    )
                 )
                 what = "policy"
                 if self.rules:
@@ -222,7 +234,7 @@ class RoboCupTeam:
                         view,
                         mode,
                         side,
-                        halves_played=max(halves, 1),
+                        halves_played=halves,
                         catch_allowed=counts["cycles"] - last_catch >= _CATCH_BAN,
                     )
                 if what == "catch":
@@ -243,7 +255,7 @@ class RoboCupTeam:
             goals_against=goals[1 - side],
             cycles=counts["cycles"],
             server_time=int(cycle.server_time),
-            late_cycles=int(client.stats.stale_thinks),
+            late_player_cycles=int(client.stats.stale_thinks - setup_late),
             missed=counts["missed"],
             catches=counts["catches"],
             set_piece_cycles=counts["set_piece"],

@@ -1,0 +1,256 @@
+"""One elevens team in a match (robocup.team) and full matches (robocup.match): against the
+fake server everywhere, against rcssserver and a fake external team where rcssserver is
+installed, and against helios-base where it is built."""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from elevens.cli import main
+from elevens.robocup.match import (
+    MATCH_OPTIONS,
+    ElevensTeam,
+    ExternalTeam,
+    MatchResult,
+    parse_team,
+    play_match,
+    play_matches,
+    summarize,
+)
+from elevens.robocup.server import ServerProcess
+from elevens.robocup.team import RoboCupTeam, TeamResult
+from tests.robocup.conftest import needs_rcssserver
+from tests.robocup.test_client import FakeServer
+
+FAKE_TEAM = Path(__file__).with_name("fake_team.py")
+HELIOS = os.environ.get("ELEVENS_HELIOS_START", "")
+needs_helios = pytest.mark.skipif(
+    not (HELIOS and Path(HELIOS).is_file() and (os.environ.get("ELEVENS_RCSSSERVER") or
+                                                 __import__("shutil").which("rcssserver"))),
+    reason=(
+        "helios-base not built: build librcsc (github.com/helios-base/librcsc, cmake with "
+        "-DHAVE_NETINET_IN_H=1) and helios-base (github.com/helios-base/helios-base) outside "
+        "the repository, then set ELEVENS_HELIOS_START=/path/to/helios-base/build/bin/start.sh "
+        "(and install rcssserver); see docs/results/robocup.md"
+    ),
+)
+
+
+def _fake_team(name: str = "fake", players: int = 11, real_time: bool = False) -> ExternalTeam:
+    flags = " --real-time" if real_time else ""
+    cmd = f"{sys.executable} {FAKE_TEAM} --port {{port}} --team {{team}} --players {players}"
+    return ExternalTeam(cmd + flags, name)
+
+
+def _slow_first_call(team: RoboCupTeam, seconds: float) -> list[float]:
+    """Make the team's first policy call take ``seconds`` (as a compile would); returns the
+    list the call times go to."""
+    act = team.player.act
+    times: list[float] = []
+
+    def slow(carry: Any, obs: Any, key: Any) -> Any:
+        began = time.perf_counter()
+        if not times:
+            time.sleep(seconds)
+        out = act(carry, obs, key)
+        times.append(time.perf_counter() - began)
+        return out
+
+    team.player.act = slow
+    return times
+
+
+def _play_in_thread(team: RoboCupTeam, address: Any, **kwargs: Any) -> dict[str, Any]:
+    box: dict[str, Any] = {}
+
+    def run() -> None:
+        try:
+            box["result"] = team.play(address, **kwargs)
+        except BaseException as error:  # reported by the test
+            box["error"] = error
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    box["thread"] = thread
+    return box
+
+
+# -- against the fake server ----------------------------------------------------------------
+
+
+def _referee(server: FakeServer, at: int, mode: str) -> None:
+    server.extra.setdefault(at, []).append(
+        ("players", f"(hear {at} referee {mode})".encode() + b"\x00")
+    )
+
+
+def test_team_moves_before_kick_off_plays_after_it_and_leaves_at_time_over() -> None:
+    server = FakeServer(2, teams=1, wait_s=1.0)
+    try:
+        _referee(server, 6, "play_on")
+        _referee(server, 14, "time_over")
+        team = RoboCupTeam("naive", players_per_team=2, team_name="mine")
+        result = team.play(server.address, max_cycles=100)
+    finally:
+        server.close()
+    assert isinstance(result, TeamResult) and result.ended == "time_over"
+    assert result.side == 0 and result.goals_for == result.goals_against == 0
+    assert result.missed == 0 and server.timeouts == 0 and server.early_dones == 0
+    sent = [d.decode() for d in server.players[0].received]
+    moves = [i for i, d in enumerate(sent) if d.startswith("(move ")]
+    bodies = [i for i, d in enumerate(sent) if d.startswith(("(dash", "(turn ", "(kick"))]
+    assert moves and bodies and max(moves) < min(bodies)  # moved before kick-off only
+    assert sent[-1].startswith("(bye)")
+
+
+def test_a_slow_first_policy_call_happens_before_connecting() -> None:
+    """Compile before connect: a first call as slow as a JIT compile (longer than the
+    server's wait) costs no cycle, because warm_up makes it before (init) goes out."""
+    server = FakeServer(1, teams=1, wait_s=0.6)
+    try:
+        team = RoboCupTeam("naive", players_per_team=1, team_name="mine")
+        calls = _slow_first_call(team, 1.0)
+        team.warm_up()
+        assert calls[0] >= 1.0 and not server.players  # paid before connecting
+        result = team.play(server.address, max_cycles=12)
+    finally:
+        server.close()
+    assert result.cycles == 12 and server.timeouts == 0
+    assert server.players[0].dones == server.players[0].thinks - 1  # lockstep to the end
+
+
+def test_without_warm_up_the_slow_first_call_costs_the_server_a_cycle() -> None:
+    # The control for the test above: the same slow call after connecting is a missed cycle.
+    server = FakeServer(1, teams=1, wait_s=0.6)
+    try:
+        team = RoboCupTeam("naive", players_per_team=1, team_name="mine")
+        _slow_first_call(team, 1.0)
+        team._warm = True  # skip the warm-up
+        team.play(server.address, max_cycles=6)
+    finally:
+        server.close()
+    assert server.timeouts >= 1
+
+
+# -- the match runner without a server -------------------------------------------------------
+
+
+def _result(m: int, score: tuple[int, int]) -> MatchResult:
+    return MatchResult(m, ("a", "b"), score, 1.0, 6000, 0, None)
+
+
+def test_summarize_counts_results_and_brackets_the_mean_difference() -> None:
+    results = [_result(i, s) for i, s in enumerate([(0, 3), (1, 1), (2, 0), (0, 5), (0, 2)])]
+    summary = summarize(results)
+    assert (summary.wins, summary.draws, summary.losses) == (1, 1, 3)
+    assert summary.difference == pytest.approx(-1.6)
+    assert summary.goals_for == pytest.approx(0.6) and summary.goals_against == pytest.approx(2.2)
+    low, high = summary.difference_ci
+    assert -5.0 <= low < summary.difference < high <= 2.0
+    assert "W/D/L 1/1/3" in summary.line() and "-1.60" in summary.line()
+    assert np.isnan(summarize(results[:1]).difference_ci[0])
+    with pytest.raises(ValueError, match="no matches"):
+        summarize([])
+
+
+def test_parse_team_takes_exactly_one_of_a_spec_and_a_command() -> None:
+    assert parse_team("naive", None, "x") == ElevensTeam("naive", "x")
+    external = parse_team(None, "start.sh -p {port} -t {team}", "H")
+    assert isinstance(external, ExternalTeam)
+    assert external.command("127.0.0.1", 7000, 11, True)[-1] == "start.sh -p 7000 -t H"
+    for spec, cmd in (("naive", "start.sh"), (None, None)):
+        with pytest.raises(ValueError, match="not both"):
+            parse_team(spec, cmd, "x")
+    with pytest.raises(ValueError, match="empty"):
+        parse_team(None, "  ", "x")
+
+
+def test_match_cli_refuses_equal_team_names(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exit_info:
+        main(["robocup", "match", "--team1", "random", "--team1-name", "elevens",
+              "--rcssserver", sys.executable])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "both 'elevens'" in err[0]
+
+
+def test_match_options_are_regulation() -> None:
+    assert MATCH_OPTIONS["server::auto_mode"] == "true"
+    assert MATCH_OPTIONS["server::half_time"] == "300"  # 3000 cycles a half
+    assert MATCH_OPTIONS["server::coach_w_referee"] == "false"  # no trainer in a match
+
+
+# -- with rcssserver ----------------------------------------------------------------------------
+
+
+@needs_rcssserver
+@pytest.mark.parametrize("real_time", [False, True])
+def test_match_against_a_fake_external_team(tmp_path: Path, real_time: bool) -> None:
+    results = play_matches(
+        ElevensTeam("naive", "elevens"), _fake_team(real_time=real_time), matches=1,
+        half_time=3, synch=not real_time, log_dir=tmp_path, results_path=tmp_path / "r.jsonl",
+        print_fn=lambda _: None,
+    )
+    result = results[0]
+    assert result.names == ("elevens", "fake") and result.server_cycles == 60
+    report = result.teams[0]
+    assert report is not None and report["ended"] == "time_over" and report["side"] == 0
+    assert (report["goals_for"], report["goals_against"]) == result.score
+    assert report["server_time"] == 60 and report["missed"] == 0
+    if real_time:
+        # 100 ms cycles and a policy call of a few ms: at most one cycle late (for each of
+        # the 11 players), which a view change just after connecting can cost.
+        assert report["late_player_cycles"] <= 11
+    else:
+        assert result.missed_cycles == 0 and report["late_player_cycles"] == 0
+    logs = sorted(p.suffix for p in (tmp_path / "match_000").iterdir())
+    assert ".rcg" in logs and ".rcl" in logs
+    line = json.loads((tmp_path / "r.jsonl").read_text().splitlines()[0])
+    assert tuple(line["score"]) == result.score
+
+
+@needs_rcssserver
+def test_real_server_clock_and_team_stay_in_lockstep_despite_a_slow_first_call() -> None:
+    """A slow first policy call (2 s, longer than the server's 1.25 s wait) is paid before
+    connecting: the match runs every cycle with every (done) in time."""
+    options = dict(MATCH_OPTIONS, **{"server::half_time": "3"})
+    with ServerProcess(options=options) as server:
+        team = RoboCupTeam("naive", players_per_team=11, team_name="mine")
+        calls = _slow_first_call(team, 2.0)
+        box = _play_in_thread(team, server.address)
+        deadline = time.monotonic() + 60
+        while "mine 11" not in (server.log_path.read_text() if server.log_path else ""):
+            assert time.monotonic() < deadline and "error" not in box, box.get("error")
+            time.sleep(0.05)
+        fake = _fake_team().command("127.0.0.1", server.address.port, 11, True)
+        import subprocess
+
+        proc = subprocess.Popen(fake, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        try:
+            box["thread"].join(120)
+            assert "error" not in box, box.get("error")
+            log = server.log_path.read_text() if server.log_path else ""
+        finally:
+            proc.kill()
+    result: TeamResult = box["result"]
+    assert calls[0] >= 2.0 and max(calls[1:]) < 1.0
+    assert result.ended == "time_over" and result.server_time == 60 and result.missed == 0
+    assert "missed a cycle" not in log
+
+
+@needs_helios
+def test_helios_base_plays_a_short_match_against_naive(tmp_path: Path) -> None:
+    helios = ExternalTeam(f"{HELIOS} -p {{port}} -P {{coach_port}} -t {{team}}", "HELIOS_base")
+    result = play_match(ElevensTeam("naive", "elevens"), helios, half_time=10)
+    assert result.names == ("elevens", "HELIOS_base") and result.missed_cycles == 0
+    assert result.teams[0] is not None and result.teams[0]["ended"] == "time_over"
+    assert result.score[1] >= result.score[0]  # helios-base outplays the naive team

@@ -1,0 +1,152 @@
+"""elevens.robocup.rules: which routine each play mode calls for, and the commands it gives."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from elevens.robocup.protocol import Catch, Dash, Kick, Move, NoOp, Turn
+from elevens.robocup.rules import (
+    CATCH_REACH,
+    TeamView,
+    apply_rules,
+    kick_off_positions,
+    kick_off_taker,
+    kicks_off_next,
+    mode_kind,
+)
+
+
+def _view(n: int = 3, **changes: object) -> TeamView:
+    fields: dict[str, np.ndarray] = {
+        "position": np.array([[-50.0, 0.0], [-20.0, 5.0], [10.0, -5.0]])[:n],
+        "heading": np.zeros(n),
+        "ball_seen": np.ones(n, bool),
+        "ball_distance": np.array([40.0, 20.0, 30.0])[:n],
+        "ball_bearing": np.zeros(n),
+        "stale": np.zeros(n, np.int32),
+    }
+    for name, value in changes.items():
+        fields[name] = np.asarray(value)
+    return TeamView(**fields)
+
+
+POLICY = [Dash(10.0), Dash(20.0), Dash(30.0)]
+
+
+@pytest.mark.parametrize(
+    ("mode", "side", "kind"),
+    [
+        ("before_kick_off", 0, "move"),
+        ("goal_l", 1, "move"),
+        ("kick_off_l", 0, "ours"),
+        ("kick_off_l", 1, "theirs"),
+        ("corner_kick_r", 1, "ours"),
+        ("indirect_free_kick_r", 0, "theirs"),
+        ("goal_kick_l", 0, "ours"),
+        ("play_on", 0, "play"),
+        ("drop_ball", 1, "play"),
+        ("offside_l", 0, "play"),
+        ("time_over", 0, "over"),
+    ],
+)
+def test_mode_kind(mode: str, side: int, kind: str) -> None:
+    assert mode_kind(mode, side) == kind
+
+
+def test_kick_off_goes_to_the_side_that_conceded_else_alternates_by_half() -> None:
+    assert kicks_off_next("goal_l", 1, 1) and not kicks_off_next("goal_l", 0, 1)
+    assert kicks_off_next("before_kick_off", 0, 1) and not kicks_off_next("before_kick_off", 1, 1)
+    assert kicks_off_next("before_kick_off", 1, 2)  # the second half: right kicks off
+
+
+@pytest.mark.parametrize("n", [1, 2, 5, 11])
+def test_kick_off_formation_is_in_the_own_half_with_the_taker_at_the_ball(n: int) -> None:
+    away = kick_off_positions(n, taker=False)
+    home = kick_off_positions(n, taker=True)
+    assert away.shape == (n, 2) and np.all(away[:, 0] <= -1.0)
+    assert np.all(np.abs(away[:, 1]) <= 34.0) and np.all(away[:, 0] >= -52.5)
+    taker = kick_off_taker(n)
+    assert np.hypot(*home[taker]) < 1.0  # within kicking distance of the centre spot
+    assert np.array_equal(np.delete(home, taker, 0), np.delete(away, taker, 0))
+
+
+def test_move_modes_move_everyone_to_the_formation_in_the_servers_frame() -> None:
+    commands, what = apply_rules(POLICY, _view(), "before_kick_off", 1, halves_played=1)
+    assert what == "move"
+    slots = kick_off_positions(3, taker=False)  # right does not kick off the first half
+    moved = [(c.x, c.y) for c in commands if isinstance(c, Move)]
+    assert moved == [(x, -y) for x, y in slots]
+
+
+def test_their_set_piece_and_play_on_leave_the_policy_alone() -> None:
+    for mode in ("kick_in_r", "play_on", "drop_ball"):
+        commands, what = apply_rules(POLICY, _view(), mode, 0)
+        assert commands == POLICY and what == "policy"
+
+
+def test_our_set_piece_sends_the_nearest_player_to_the_ball() -> None:
+    # Player 1 is nearest (20 m), the ball 30 degrees to its left: it turns first.
+    view = _view(ball_bearing=[0.0, math.radians(30.0), 0.0])
+    commands, what = apply_rules(POLICY, view, "free_kick_l", 0)
+    assert what == "set_piece" and commands[0] == POLICY[0] and commands[2] == POLICY[2]
+    turn = commands[1]
+    assert isinstance(turn, Turn) and turn.moment == pytest.approx(-30.0)  # + = clockwise
+    commands, _ = apply_rules(POLICY, _view(), "free_kick_l", 0)
+    assert commands[1] == Dash(100.0)
+
+
+def test_a_kickable_taker_shoots_near_the_goal_and_clears_up_the_wing_far_from_it() -> None:
+    near = _view(position=[[-50.0, 0.0], [40.0, 0.0], [0.0, 0.0]],
+                 ball_distance=[50.0, 0.5, 40.0], ball_bearing=[0.0, 0.0, 0.0])
+    commands, _ = apply_rules(POLICY, near, "kick_in_l", 0)
+    kick = commands[1]
+    assert isinstance(kick, Kick) and kick.power == 100.0
+    aim = math.degrees(math.atan2(3.5, 52.5 - 40.5))  # at the post on the ball's far side
+    assert kick.direction == pytest.approx(-aim, abs=1.0)
+    far = _view(position=[[-50.0, 0.0], [-30.0, 10.0], [0.0, 0.0]],
+                ball_distance=[50.0, 0.5, 40.0])
+    commands, _ = apply_rules(POLICY, far, "goal_kick_l", 0)
+    kick = commands[1]
+    assert isinstance(kick, Kick) and kick.direction < 0  # up the left wing (+y = clockwise -)
+
+
+def test_the_goalie_takes_the_free_kick_after_its_catch() -> None:
+    view = _view(position=[[-48.0, 0.0], [-40.0, 0.0], [0.0, 0.0]],
+                 ball_distance=[0.8, 8.0, 40.0])
+    commands, what = apply_rules(POLICY, view, "free_kick_l", 0, goalie=0)
+    assert what == "set_piece" and isinstance(commands[0], Kick) and commands[1] == POLICY[1]
+
+
+def test_the_goalie_catches_a_fresh_ball_in_reach_inside_its_penalty_area() -> None:
+    reach = dict(position=[[-50.0, 2.0], [-20.0, 5.0], [10.0, -5.0]],
+                 ball_distance=[CATCH_REACH - 0.1, 20.0, 30.0],
+                 ball_bearing=[math.radians(40.0), 0.0, 0.0])
+    commands, what = apply_rules(POLICY, _view(**reach), "play_on", 0)
+    catch = commands[0]
+    assert what == "catch" and isinstance(catch, Catch)
+    assert catch.direction == pytest.approx(-40.0)
+    assert commands[1:] == POLICY[1:]
+    refused = [
+        dict(reach, stale=[1, 0, 0]),  # the see is a cycle old: the ball has moved
+        dict(reach, ball_distance=[CATCH_REACH + 0.2, 20.0, 30.0]),
+        dict(reach, position=[[-30.0, 2.0], [-20.0, 5.0], [10.0, -5.0]]),  # out of its area
+        dict(reach, ball_bearing=[math.radians(120.0), 0.0, 0.0]),  # beyond the +-90 range
+    ]
+    for changes in refused:
+        assert apply_rules(POLICY, _view(**changes), "play_on", 0)[1] == "policy"
+    assert apply_rules(POLICY, _view(**reach), "play_on", 0, catch_allowed=False)[1] == "policy"
+    assert apply_rules(POLICY, _view(**reach), "play_on", 0, goalie=None)[1] == "policy"
+
+
+def test_nobody_sees_the_ball_leaves_our_set_piece_to_the_policy() -> None:
+    commands, what = apply_rules(POLICY, _view(ball_seen=[False] * 3), "corner_kick_l", 0)
+    assert what == "policy" and commands == POLICY
+
+
+def test_time_over_sends_nothing() -> None:
+    commands, _ = apply_rules(POLICY, _view(), "time_over", 0)
+    assert commands == [None, None, None]
+    assert NoOp() not in commands

@@ -20,7 +20,6 @@ import os
 import re
 import shlex
 import shutil
-import signal
 import subprocess
 import sys
 import tempfile
@@ -31,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from elevens.robocup.external import read_text, start_team, stop_team, wait_connected
 from elevens.robocup.server import ServerProcess
 
 __all__ = [
@@ -64,7 +64,6 @@ MATCH_OPTIONS: dict[str, str] = {
     "server::synch_mode": "true",
 }
 _SCORE = re.compile(r"Score:\s*(\d+)\s*-\s*(\d+)")
-_CONNECTED = re.compile(r"A new \(v\d+\) player \((\S+) (\d+)\) connected\.")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -93,9 +92,8 @@ class ExternalTeam:
     cmd: str
     name: str = "external"
 
-    def command(self, host: str, port: int, players: int, synch: bool) -> list[str]:
-        text = self.cmd.format(host=host, port=port, coach_port=port + 2, team=self.name)
-        return ["/bin/sh", "-c", text]
+    def command(self, host: str, port: int, players: int, synch: bool) -> str:
+        return self.cmd
 
 
 Team = ElevensTeam | ExternalTeam
@@ -165,34 +163,6 @@ def summarize(results: Sequence[MatchResult], *, seed: int = 0) -> MatchSummary:
     )
 
 
-def _connected(log_text: str, name: str) -> int:
-    return sum(1 for m in _CONNECTED.finditer(log_text) if m.group(1) == name)
-
-
-def _read(path: Path) -> str:
-    try:
-        return path.read_text(errors="replace")
-    except FileNotFoundError:
-        return ""
-
-
-def _stop_group(proc: subprocess.Popen[bytes]) -> None:
-    """SIGTERM the team's process group (start.sh leaves its players in the background),
-    then SIGKILL what is left."""
-    for sig, wait in ((signal.SIGTERM, 5.0), (signal.SIGKILL, 5.0)):
-        try:
-            os.killpg(proc.pid, sig)
-        except ProcessLookupError:
-            return
-        try:
-            proc.wait(wait)
-            # The leader is gone; its background children may not be.
-            os.killpg(proc.pid, signal.SIGKILL)
-        except (subprocess.TimeoutExpired, ProcessLookupError):
-            continue
-        return
-
-
 def play_match(
     team0: Team,
     team1: Team,
@@ -234,21 +204,19 @@ def play_match(
         server.start()
         address = server.address
         for team in (team0, team1):
-            out = open(work / f"{team.name}.log", "wb")  # noqa: SIM115 - closed with the process
-            procs.append(subprocess.Popen(
-                team.command(address.host, address.port, players_per_team, synch),
-                stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                start_new_session=True,
-            ))
-            out.close()
-            _wait_connected(server, log_path, team, players_per_team, procs[-1], work,
-                            connect_timeout_s)
+            output = work / f"{team.name}.log"
+            command = team.command(address.host, address.port, players_per_team, synch)
+            procs.append(start_team(command, address, team.name, output))
+            wait_connected(
+                log_path, team.name, players_per_team, procs[-1], output, connect_timeout_s,
+                exit_is_error=isinstance(team, ElevensTeam),
+            )
         deadline = time.monotonic() + match_timeout_s
         while server.alive and time.monotonic() < deadline:
             time.sleep(0.2)
         if server.alive:
             raise RuntimeError(f"the match did not end within {match_timeout_s:g} s")
-        text = _read(log_path)
+        text = read_text(log_path)
         score = _SCORE.search(text)
         if score is None:
             raise RuntimeError(
@@ -260,7 +228,7 @@ def play_match(
                 proc.wait(10.0)
         for team, proc in zip((team0, team1), procs, strict=True):
             if isinstance(team, ElevensTeam) and proc.returncode not in (0, None):
-                tail = _read(work / f"{team.name}.log")[-2000:]
+                tail = read_text(work / f"{team.name}.log")[-2000:]
                 raise RuntimeError(
                     f"team {team.name!r} failed during the match (status {proc.returncode}):"
                     f"\n{tail}"
@@ -278,7 +246,7 @@ def play_match(
         )
     finally:
         for proc in procs:
-            _stop_group(proc)
+            stop_team(proc)
         server.stop()
         if log_dir is not None:  # keep the teams' output beside the game logs
             for path in work.glob("*.log"):
@@ -289,7 +257,7 @@ def play_match(
 
 def _team_report(path: Path) -> dict[str, Any] | None:
     """The JSON line an elevens team prints at the end of its match (None: not one)."""
-    for line in reversed(_read(path).splitlines()):
+    for line in reversed(read_text(path).splitlines()):
         if line.startswith("{"):
             try:
                 report = json.loads(line)
@@ -297,31 +265,6 @@ def _team_report(path: Path) -> dict[str, Any] | None:
                 return None
             return report if isinstance(report, dict) else None
     return None
-
-
-def _wait_connected(
-    server: ServerProcess,
-    log_path: Path,
-    team: Team,
-    players: int,
-    proc: subprocess.Popen[bytes],
-    work: Path,
-    timeout_s: float,
-) -> None:
-    deadline = time.monotonic() + timeout_s
-    while _connected(_read(log_path), team.name) < players:
-        if proc.poll() is not None and isinstance(team, ElevensTeam):
-            tail = _read(work / f"{team.name}.log")[-2000:]
-            raise RuntimeError(f"team {team.name!r} exited before connecting:\n{tail}")
-        if not server.alive:
-            raise RuntimeError(f"rcssserver exited while {team.name!r} connected")
-        if time.monotonic() > deadline:
-            tail = _read(work / f"{team.name}.log")[-2000:]
-            raise RuntimeError(
-                f"team {team.name!r} connected {_connected(_read(log_path), team.name)} of "
-                f"{players} players within {timeout_s:g} s; its output:\n{tail}"
-            )
-        time.sleep(0.1)
 
 
 def play_matches(

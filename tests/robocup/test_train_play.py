@@ -139,6 +139,33 @@ def test_play_iteration_packs_a_rollout_like_the_compiled_one(tmp_path: Path) ->
     assert np.isfinite(float(learned.update.metrics.total))
 
 
+def test_an_external_opponent_leaves_the_learner_on_the_left_and_its_side_unplayed(
+    tmp_path: Path,
+) -> None:
+    config = small_config(tmp_path, players_per_team=2, episode_length=4)
+    trainer = make_trainer(config.train_config())
+    state = trainer.init(jax.random.key(0))
+    from elevens.robocup.train import make_actor
+
+    envs = [SimEnv(2), SimEnv(2)]
+    data, _ = play_iteration(
+        envs, make_actor(trainer.policy), trainer.policy, state.params.policy,
+        state.params.policy, jax.random.key(1), episode_length=4, shaping_active=True, seed=0,
+        external_opponent=True,
+    )
+    assert np.asarray(data.learner_side).tolist() == [0, 0]
+    for env in envs:
+        acted = np.stack(env.actions_seen)  # [T, 2, n, 2]
+        assert np.abs(acted[:, 0]).sum() > 0 and not acted[:, 1].any()  # nobody acts for 1
+
+
+def test_config_checks_the_external_opponent() -> None:
+    with pytest.raises(ValueError, match="opponent_cmd=' '"):
+        RoboCupTrainConfig(opponent_cmd=" ")
+    with pytest.raises(ValueError, match="opponent_name='elevens_l'"):
+        RoboCupTrainConfig(opponent_cmd="x", opponent_name="elevens_l")
+
+
 def test_train_writes_episodes_checkpoints_and_resumes(tmp_path: Path) -> None:
     envs: list[SimEnv] = []
 
@@ -267,6 +294,7 @@ def test_server_bench_reports_cycles_per_second(capsys: pytest.CaptureFixture[st
     assert result["cycles_per_s"] > 0 and result["missed"] == 0 and result["players"] == 4
 
 
+@pytest.mark.slow
 @needs_rcssserver
 def test_server_short_training_run(tmp_path: Path) -> None:
     config = RoboCupTrainConfig(
@@ -277,6 +305,24 @@ def test_server_short_training_run(tmp_path: Path) -> None:
     assert result.iterations == 2 and result.restarts == 0
     with (tmp_path / "run" / EPISODES_CSV).open() as f:
         assert len(list(csv.DictReader(f))) == 4
+
+
+@pytest.mark.slow
+@needs_rcssserver
+def test_server_training_against_an_external_team(tmp_path: Path) -> None:
+    fake = Path(__file__).with_name("fake_team.py")
+    config = RoboCupTrainConfig(
+        players_per_team=2, servers=1, episode_length=20, iterations=2, minutes=None,
+        run_dir=str(tmp_path / "run"), rcssserver=os.environ.get("ELEVENS_RCSSSERVER"),
+        opponent_cmd=f"{sys.executable} {fake} --port {{port}} --team {{team}} --players 2",
+        opponent_name="fake",
+    )
+    result = train_robocup(config, print_fn=lambda _: None)
+    assert result.iterations == 2 and result.restarts == 0
+    with (tmp_path / "run" / EPISODES_CSV).open() as f:
+        rows = list(csv.DictReader(f))
+    assert [r["learner_side"] for r in rows] == ["0", "0"]
+    assert all(r["missed"] == "0" and int(r["server_cycles"]) >= 1 for r in rows)
 
 
 @needs_rcssserver

@@ -70,6 +70,12 @@ class RoboCupTrainArgs:
     """Stop after this many iterations."""
     opponent: str = "polyak"
     """'polyak' (frozen while the learner is not ahead) or 'self'."""
+    opponent_cmd: str | None = None
+    """Learn against another team's binaries: its start command with {host}, {port},
+    {coach_port} and {team} filled in, e.g. "HELIOS/start.sh -p {port} -P {coach_port} -t
+    {team}" (then --opponent is not used)."""
+    opponent_name: str = "opponent"
+    """The external opponent's team name."""
     learning_rate: float = 1e-4
     """Adam's learning rate (table 6.1)."""
     keep_ball_in_play: bool = True
@@ -241,7 +247,7 @@ def train(args: RoboCupTrainArgs) -> None:
         iterations=args.iterations, minutes=args.minutes, keep_ball_in_play=args.keep_ball_in_play,
         opponent=args.opponent, learning_rate=args.learning_rate, init_from=args.init_from,
         run_dir=args.run_dir, rcssserver=binary, checkpoint_every=args.checkpoint_every,
-        seed=args.seed,
+        seed=args.seed, opponent_cmd=args.opponent_cmd, opponent_name=args.opponent_name,
     )
     try:
         result = train_robocup(config, resume=args.resume)

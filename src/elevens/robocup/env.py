@@ -36,7 +36,11 @@ import dataclasses
 import functools
 import logging
 import math
+import shutil
+import subprocess
+import tempfile
 from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
 from types import TracebackType
 from typing import Any, NamedTuple, Protocol
 
@@ -50,6 +54,7 @@ from elevens.env.reward import reward_terms
 from elevens.env.state import GlobalState, Observation, State
 from elevens.robocup.actions import ACTION_SIZE, ActionScaling, actions_to_commands
 from elevens.robocup.client import Cycle, RoboCupClient, ServerDied
+from elevens.robocup.external import start_team, stop_team, wait_connected
 from elevens.robocup.observe import (
     FIELD_LENGTH,
     FIELD_WIDTH,
@@ -142,6 +147,13 @@ class RoboCupConfig:
     """Team names of the left (team 0) and right (team 1) side."""
     max_restarts: int = 3
     """Failed server restarts in a row before the env gives up and raises."""
+    opponent_cmd: str | None = None
+    """Team 1 is another program (e.g. helios-base's ``start.sh -p {port} -P {coach_port} -t
+    {team}``; elevens.robocup.external): started with each server, named ``team_names[1]``,
+    it plays for itself. The env then connects team 0 and the trainer only; team 1's actions
+    are ignored, and its rewards and observations (no percepts of its own) mean nothing."""
+    opponent_connect_timeout_s: float = 60.0
+    """How long the opponent's players may take to connect."""
 
     def __post_init__(self) -> None:
         n = self.players_per_team
@@ -174,6 +186,8 @@ class RoboCupConfig:
             raise ValueError(
                 f"team_names={self.team_names!r} is invalid: it needs two different names"
             )
+        if self.opponent_cmd is not None and not self.opponent_cmd.strip():
+            raise ValueError("opponent_cmd='' is invalid: give the opponent's start command")
 
     @property
     def action_size(self) -> int:
@@ -287,6 +301,7 @@ def _default_client(server: ServerLike, config: RoboCupConfig) -> ClientLike:
         config.players_per_team,
         team_names=config.team_names,
         think_timeout_s=config.think_timeout_s,
+        one_team=config.opponent_cmd is not None,
     )
 
 
@@ -363,6 +378,8 @@ class RoboCupEnv:
         self._start_team = np.zeros((2, n, 2))  # spawn points in each team's frame
         self._start_world = np.zeros((2 * n, 2))  # the same in the world frame, [2n, 2]
         self._last_cycle: Cycle | None = None
+        self._opponent: subprocess.Popen[bytes] | None = None
+        self._opponent_dir: Path | None = None
         self._last_actions = np.zeros((2, n, 2), np.float32)
         self._score = np.zeros(2, np.int32)
         self._step = 0
@@ -414,7 +431,7 @@ class RoboCupEnv:
             raise RuntimeError("RoboCupEnv.step called before reset()")
         before = self._state
         try:
-            cycle = self._client.step(commands)
+            cycle = self._client.step(self._own(commands))
         except _DEAD as error:
             log.warning("rcssserver died (%s); restarting", error)
             self._recover()
@@ -475,6 +492,7 @@ class RoboCupEnv:
         """Disconnect and stop the server. Idempotent."""
         client, server = self._client, self._server
         self._client = self._server = None
+        self._stop_opponent()
         if client is not None:
             try:
                 client.close()
@@ -689,8 +707,45 @@ class RoboCupEnv:
         if isinstance(server_params, ServerParams):
             self._scaling = ActionScaling.from_server_params(server_params)
             self._kickable = kickable_distance(server_params)
-        view = [ChangeView(self.config.view)] * self.num_players
+        if self.config.opponent_cmd is not None:
+            self._start_opponent()
+        view = [ChangeView(self.config.view)] * len(self._own(list(range(self.num_players))))
         self._client.step(view)
+
+    def _own(self, commands: list[Any]) -> list[Any]:
+        """The commands of the players this env connects: all, or team 0's with an external
+        opponent."""
+        return commands[: self.players_per_team] if self.config.opponent_cmd else commands
+
+    def _start_opponent(self) -> None:
+        """(Re)start the external team 1 and wait until its players are in."""
+        assert self._client is not None and self._server is not None
+        sides = getattr(self._client, "sides", (0,))
+        if tuple(sides) != (0,):
+            raise RuntimeError(
+                f"our team was given the side {sides!r}, not the left: another team was "
+                "connected to this server before us"
+            )
+        self._stop_opponent()
+        log_path = getattr(self._server, "log_path", None)
+        self._opponent_dir = Path(tempfile.mkdtemp(prefix="elevens-opponent-"))
+        output = self._opponent_dir / "opponent.log"
+        assert self.config.opponent_cmd is not None
+        self._opponent = start_team(
+            self.config.opponent_cmd, self._server.address, self.config.team_names[1], output
+        )
+        wait_connected(
+            log_path, self.config.team_names[1], self.players_per_team, self._opponent, output,
+            self.config.opponent_connect_timeout_s,
+        )
+
+    def _stop_opponent(self) -> None:
+        if self._opponent is not None:
+            stop_team(self._opponent)
+            self._opponent = None
+        if self._opponent_dir is not None:
+            shutil.rmtree(self._opponent_dir, ignore_errors=True)
+            self._opponent_dir = None
 
     def _connect_with_retries(self) -> None:
         failures = 0

@@ -86,6 +86,12 @@ class RoboCupTrainConfig:
     threads: bool = True
     """Step the games' servers from a thread pool, so one server simulates while Python parses
     another's messages."""
+    opponent_cmd: str | None = None
+    """Learn against another team's binaries instead of a copy of the learner: its start
+    command, with {host}, {port}, {coach_port} and {team} filled in (elevens.robocup.external),
+    started beside every server. The learner then always plays the left side."""
+    opponent_name: str = "opponent"
+    """The external opponent's team name."""
 
     def __post_init__(self) -> None:
         checks = (
@@ -97,6 +103,16 @@ class RoboCupTrainConfig:
             ("opponent", self.opponent in ("polyak", "self"), "'polyak' or 'self'"),
             ("learning_rate", self.learning_rate > 0, "> 0"),
             ("checkpoint_every", self.checkpoint_every >= 1, "an int >= 1"),
+            (
+                "opponent_cmd",
+                self.opponent_cmd is None or bool(self.opponent_cmd.strip()),
+                "None or a start command",
+            ),
+            (
+                "opponent_name",
+                self.opponent_name not in ("", "elevens_l"),
+                "a team name other than elevens_l",
+            ),
         )
         for name, ok, allowed in checks:
             if not ok:
@@ -150,6 +166,10 @@ def _default_env_factory(config: RoboCupTrainConfig) -> EnvFactory:
                 keep_ball_in_play=config.keep_ball_in_play,
                 action="sim",
                 rcssserver=config.rcssserver,
+                opponent_cmd=config.opponent_cmd,
+                team_names=(
+                    "elevens_l", config.opponent_name if config.opponent_cmd else "elevens_r"
+                ),
             )
         )
 
@@ -210,10 +230,13 @@ def play_iteration(
     shaping_active: bool,
     seed: int,
     pool: ThreadPoolExecutor | None = None,
+    external_opponent: bool = False,
 ) -> tuple[Rollout, list[_GameLog]]:
-    """One episode of every game (learner against opponent) packed as a ``Rollout``."""
+    """One episode of every game (learner against opponent) packed as a ``Rollout``. With an
+    ``external_opponent`` the learner plays the left side of every game and the opponent's
+    actions are not computed (the other program plays them)."""
     num_games = len(envs)
-    sides = learner_sides(num_games)
+    sides = np.zeros(num_games, np.int32) if external_opponent else learner_sides(num_games)
     others = 1 - sides
     index = np.arange(num_games)
     n = envs[0].players_per_team
@@ -246,12 +269,13 @@ def play_iteration(
         learner_carry, pre_tanh, log_prob, learner_action = act(
             learner_params, learner_carry, learner_obs, player_reset, step_keys[t, 0]
         )
-        opponent_carry, _, _, opponent_action = act(
-            opponent_params, opponent_carry, opponent_obs, player_reset, step_keys[t, 1]
-        )
         actions = np.zeros((num_games, 2, n, 2), np.float32)
         actions[index, sides] = np.asarray(learner_action)
-        actions[index, others] = np.asarray(opponent_action)
+        if not external_opponent:
+            opponent_carry, _, _, opponent_action = act(
+                opponent_params, opponent_carry, opponent_obs, player_reset, step_keys[t, 1]
+            )
+            actions[index, others] = np.asarray(opponent_action)
         def step_game(g: int, actions: np.ndarray = actions) -> Any:
             return envs[g].step(actions[g])
 
@@ -447,6 +471,7 @@ def train_robocup(
                 shaping_active=bool(state.shaping.active),
                 seed=config.seed * 1_000_003 + iteration * config.servers,
                 pool=pool,
+                external_opponent=config.opponent_cmd is not None,
             )
             played = time.perf_counter()
             learned = learn(state.params, state.opt_state, data, shuffle_key)

@@ -76,6 +76,9 @@ class RoboCupTrainArgs:
     {team}" (then --opponent is not used)."""
     opponent_name: str = "opponent"
     """The external opponent's team name."""
+    shaping: bool = True
+    """Add the simulator's ball and approach shaping to the goal reward (--no-shaping: goals
+    only)."""
     learning_rate: float = 1e-4
     """Adam's learning rate (table 6.1)."""
     keep_ball_in_play: bool = True
@@ -248,6 +251,7 @@ def train(args: RoboCupTrainArgs) -> None:
         opponent=args.opponent, learning_rate=args.learning_rate, init_from=args.init_from,
         run_dir=args.run_dir, rcssserver=binary, checkpoint_every=args.checkpoint_every,
         seed=args.seed, opponent_cmd=args.opponent_cmd, opponent_name=args.opponent_name,
+        shaping=args.shaping,
     )
     try:
         result = train_robocup(config, resume=args.resume)

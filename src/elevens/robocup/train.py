@@ -92,6 +92,9 @@ class RoboCupTrainConfig:
     started beside every server. The learner then always plays the left side."""
     opponent_name: str = "opponent"
     """The external opponent's team name."""
+    shaping: bool = True
+    """Add the simulator's shaping terms (ball and approach) to the goal reward. Off: goals
+    only (at 11 v 11 the approach term outweighs the goals; docs/results/table_6_3.md)."""
 
     def __post_init__(self) -> None:
         checks = (
@@ -167,6 +170,7 @@ def _default_env_factory(config: RoboCupTrainConfig) -> EnvFactory:
                 action="sim",
                 rcssserver=config.rcssserver,
                 opponent_cmd=config.opponent_cmd,
+                shaping=config.shaping,
                 team_names=(
                     "elevens_l", config.opponent_name if config.opponent_cmd else "elevens_r"
                 ),

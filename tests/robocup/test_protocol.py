@@ -375,6 +375,9 @@ def test_hear_referee_and_trainer_forms() -> None:
             Hear(12, "online_coach_right", "(info (6000 (true) (do our {1} (pos (pt ball)))))"),
         ),
         ('(hear LeftTeam_5 30 "x")', Hear(30, "LeftTeam_5", "x")),
+        # A helios-base player's say, as the trainer hears it (seen in training against it).
+        ('(hear 87 (p "HELIOS_base" 8) "Ob7")', Hear(87, "player", "Ob7", unum=8)),
+        ('(hear 87 (p "HELIOS_base" 1 goalie) "g")', Hear(87, "player", "g", unum=1)),
     ],
 )
 def test_hear_player_and_coach_forms(text: str, expected: Hear) -> None:

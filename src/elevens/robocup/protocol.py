@@ -1379,7 +1379,9 @@ class Hear:
     s-expression is rendered back to text; None for the short ``(hear T our UNUM)`` /
     ``(hear T opp)`` forms that carry no text). ``direction`` (degrees, relative to the
     head) is set for players, ``unum`` for teammates. Handles both the player form
-    ``(hear TIME SENDER MSG)`` and the trainer's ``(hear SENDER TIME MSG)``.
+    ``(hear TIME SENDER MSG)`` and the trainer's ``(hear SENDER TIME MSG)``, and a player's
+    say as the trainer hears it, ``(hear TIME (p "TEAM" UNUM [goalie]) MSG)`` (sender
+    ``"player"``, ``unum`` set).
     """
 
     time: int
@@ -1464,6 +1466,10 @@ def _decode_hear(tree: tuple[Sexp, ...]) -> Hear:
             tree,
             where,
         )
+    if isinstance(who, tuple) and len(who) >= 3 and who[0] == "p" and len(rest) == 1:
+        # The trainer hears a player's say as (hear TIME (p "TEAM" UNUM [goalie]) MSG).
+        return Hear(time, "player", _text(rest[0], where),
+                    unum=_i(who[2], "the uniform number", where))
     sender = _atom(who, "the sender", where)
     if len(rest) != 1:
         raise _bad(f"one message after {sender}", tree, where)

@@ -193,6 +193,17 @@ def test_match_cli_refuses_equal_team_names(capsys: pytest.CaptureFixture[str]) 
     assert len(err) == 1 and "both 'elevens'" in err[0]
 
 
+def test_match_cli_refuses_an_unknown_team_before_starting_anything(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    with pytest.raises(SystemExit) as exit_info:
+        main(["robocup", "match", "--team0", "wizards", "--team1", "naive",
+              "--team1-name", "b", "--rcssserver", sys.executable])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "wizards does not exist" in err[0] and "elevens-11v11" in err[0]
+
+
 def test_match_options_are_regulation() -> None:
     assert MATCH_OPTIONS["server::auto_mode"] == "true"
     assert MATCH_OPTIONS["server::half_time"] == "300"  # 3000 cycles a half

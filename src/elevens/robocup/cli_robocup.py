@@ -308,6 +308,12 @@ def match(args: RoboCupMatchArgs) -> None:
             raise ValueError(f"--half-time {args.half_time!r} is invalid: it must be >= 1")
     except ValueError as error:
         exit_with_error("elevens robocup match: error", error, 2)
+    from elevens.robocup.match import ElevensTeam
+    from elevens.robocup.play import load_robocup_team
+
+    for side in (team0, team1):
+        if isinstance(side, ElevensTeam):  # a bad spec fails here, not in a child process
+            load_robocup_team(side.spec, "sim")
     results = play_matches(
         team0, team1, matches=args.matches, players_per_team=args.players,
         synch=not args.real_time, half_time=args.half_time, log_dir=args.log_dir,

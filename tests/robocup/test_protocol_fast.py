@@ -40,6 +40,8 @@ from elevens.robocup.protocol import (
     Think,
     parse_message,
 )
+from elevens.robocup.protocol import fast as proto_fast
+from elevens.robocup.protocol import parse as proto_parse
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "rcss"
 FILES = sorted(p.name for p in DATA.glob("*.txt"))
@@ -70,15 +72,15 @@ _REJECTED = object()
 
 def _generic(text: str) -> object:
     try:
-        return proto._parse_generic(proto._clean(text))
+        return proto_parse._parse_generic(proto_parse._clean(text))
     except ProtocolError:
         return _REJECTED
 
 
 def _check(text: str | bytes) -> None:
     """The contract for one input (see the module docstring)."""
-    clean = proto._clean(text)
-    fast = proto._fast_decode(clean)  # must not raise
+    clean = proto_parse._clean(text)
+    fast = proto_fast._fast_decode(clean)  # must not raise
     generic = _generic(clean)
     if fast is not None:
         assert generic is not _REJECTED, f"fast path accepted what the generic rejects: {clean!r}"
@@ -106,11 +108,11 @@ def test_transcripts_are_all_covered() -> None:
 @pytest.mark.parametrize("name", FILES)
 def test_every_transcript_line_equals_the_generic_parser(name: str) -> None:
     for msg in _lines(name):
-        generic = proto._parse_generic(msg)
+        generic = proto_parse._parse_generic(msg)
         for data in (msg, msg.encode() + b"\x00", bytearray(msg.encode()), "  " + msg + "\x00"):
             parsed = parse_message(data)
             assert parsed == generic and repr(parsed) == repr(generic), msg[:80]
-        fast = proto._fast_decode(msg)
+        fast = proto_fast._fast_decode(msg)
         if name in FAST_FILES:
             # The hot kinds really take the fast path (else this compares nothing).
             assert fast is not None, msg[:80]
@@ -121,9 +123,9 @@ def test_every_transcript_line_equals_the_generic_parser(name: str) -> None:
 
 def test_known_pose_sees_equal_the_generic_parser() -> None:
     for msg in KNOWN_POSE:
-        fast = proto._fast_decode(msg)
-        assert fast is not None and fast == proto._parse_generic(msg)
-        assert repr(fast) == repr(proto._parse_generic(msg))
+        fast = proto_fast._fast_decode(msg)
+        assert fast is not None and fast == proto_parse._parse_generic(msg)
+        assert repr(fast) == repr(proto_parse._parse_generic(msg))
 
 
 def test_fast_objects_behave_like_generic_ones() -> None:
@@ -131,14 +133,14 @@ def test_fast_objects_behave_like_generic_ones() -> None:
     import pickle
 
     for msg in HOT[::7]:
-        fast = proto._fast_decode(msg)
-        generic = proto._parse_generic(msg)
+        fast = proto_fast._fast_decode(msg)
+        generic = proto_parse._parse_generic(msg)
         assert hash(fast) == hash(generic)
         assert pickle.loads(pickle.dumps(fast)) == generic
         if dataclasses.is_dataclass(fast):
             assert dataclasses.asdict(fast) == dataclasses.asdict(generic)  # type: ignore[arg-type]
             assert dataclasses.replace(fast) == generic
-    see = proto._fast_decode(KNOWN_POSE[0])
+    see = proto_fast._fast_decode(KNOWN_POSE[0])
     assert isinstance(see, SeeMessage)
     with pytest.raises(dataclasses.FrozenInstanceError):
         see.objects[0].distance = 1.0  # type: ignore[misc]
@@ -155,24 +157,24 @@ def test_think_and_hear_forms() -> None:
         ("(hear 12 online_coach_left hi)", Hear(12, "online_coach_left", "hi")),
     ]
     for text, expected in forms:
-        assert proto._fast_decode(text) == expected == proto._parse_generic(text)
+        assert proto_fast._fast_decode(text) == expected == proto_parse._parse_generic(text)
     # Forms left to the generic path.
     for text in ("(hear 12 our 5)", "(hear 12 opp)", '(hear 12 -3 "old")', "(hear 1 nan x)"):
-        assert proto._fast_decode(text) is None
+        assert proto_fast._fast_decode(text) is None
         _check(text)
 
 
 def test_sense_body_fast_path_needs_the_v18_layout() -> None:
     sb = _lines("sense_body.txt")[0]
-    assert isinstance(proto._fast_decode(sb), SenseBody)
+    assert isinstance(proto_fast._fast_decode(sb), SenseBody)
     for text in (
         sb.replace("(collision none)", "(collision (ball) (post))"),
         sb.replace("(focus (target none)", "(focus (target r 7)"),
         sb.replace("(card none)", "(card yellow)"),
         sb.replace("(stamina 8000 1 130600)", "(stamina 7.5e+03 1 1.306e+05)"),
     ):
-        fast = proto._fast_decode(text)
-        assert isinstance(fast, SenseBody) and fast == proto._parse_generic(text)
+        fast = proto_fast._fast_decode(text)
+        assert isinstance(fast, SenseBody) and fast == proto_parse._parse_generic(text)
     # Other layouts and bad values: generic path (parses or rejects).
     for text in (
         sb.replace("(head_angle 0)", "(head_angle 1e999)"),
@@ -182,7 +184,7 @@ def test_sense_body_fast_path_needs_the_v18_layout() -> None:
         sb.replace(" (view_mode", "  (view_mode"),
         sb.replace("(speed 0 0)", "(speed 0 0 0)"),
     ):
-        assert proto._fast_decode(text) is None
+        assert proto_fast._fast_decode(text) is None
         _check(text)
 
 
@@ -208,38 +210,38 @@ def test_see_and_see_global_fast_path_declines_the_unusual() -> None:
         sg.replace("-0.0145666", "-0.0145666\x0b", 1),
     ]
     for text in declined:
-        assert proto._fast_decode(text) is None, text[:120]
+        assert proto_fast._fast_decode(text) is None, text[:120]
         _check(text)
 
 
 def test_see_number_cache_learns_only_canonical_decimals(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    monkeypatch.setattr(proto, "_SEE_NUMBERS", {})
+    monkeypatch.setattr(proto_fast, "_SEE_NUMBERS", {})
     see = _lines("see_midgame.txt")[1]
-    assert proto._fast_decode(see) == proto._parse_generic(see)
-    numbers = proto._SEE_NUMBERS
-    assert numbers and all(proto._SEE_DECIMAL.fullmatch(tok) for tok in numbers)
+    assert proto_fast._fast_decode(see) == proto_parse._parse_generic(see)
+    numbers = proto_fast._SEE_NUMBERS
+    assert numbers and all(proto_fast._SEE_DECIMAL.fullmatch(tok) for tok in numbers)
     assert all(numbers[tok] == float(tok) for tok in numbers)
     assert "t" not in numbers and "k" not in numbers
     # A full cache is cleared, not grown; results stay exact.
-    monkeypatch.setattr(proto, "_SEE_NUMBERS_MAX", 40)
+    monkeypatch.setattr(proto_fast, "_SEE_NUMBERS_MAX", 40)
     for msg in _lines("see.txt") + _lines("see_midgame.txt"):
-        assert proto._fast_decode(msg) == proto._parse_generic(msg)
-        assert len(proto._SEE_NUMBERS) <= 40 + msg.count(" ")
+        assert proto_fast._fast_decode(msg) == proto_parse._parse_generic(msg)
+        assert len(proto_fast._SEE_NUMBERS) <= 40 + msg.count(" ")
     for tok in ("1e5", "+1", ".5", "5.", "1_0", "nan", "0x1", "1234567890"):
-        proto._SEE_NUMBERS.clear()
-        proto._fast_decode(f"(see 1 ((f c) {tok} 2))")
-        assert tok not in proto._SEE_NUMBERS
+        proto_fast._SEE_NUMBERS.clear()
+        proto_fast._fast_decode(f"(see 1 ((f c) {tok} 2))")
+        assert tok not in proto_fast._SEE_NUMBERS
 
 
 def test_player_name_cache_is_bounded(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(proto, "_PLAYER_NAMES", {})
-    monkeypatch.setattr(proto, "_PLAYER_NAMES_MAX", 5)
+    monkeypatch.setattr(proto_fast, "_PLAYER_NAMES", {})
+    monkeypatch.setattr(proto_fast, "_PLAYER_NAMES_MAX", 5)
     for k in range(20):
         text = f'(see 1 ((p "T{k}" 3) 1 2) ((p "T{k}" 4 goalie) 1 2 0 0 3 4 k))'
-        assert proto._fast_decode(text) == proto._parse_generic(text)
-    assert len(proto._PLAYER_NAMES) == 5
+        assert proto_fast._fast_decode(text) == proto_parse._parse_generic(text)
+    assert len(proto_fast._PLAYER_NAMES) == 5
 
 
 def test_slot_builder_matches_the_dataclass_init() -> None:
@@ -250,7 +252,7 @@ def test_slot_builder_matches_the_dataclass_init() -> None:
         (PlayerState, tuple(range(21))),
         (GlobalView, (1, None, (), (), True)),
     ):
-        make = proto._slot_builder(cls)
+        make = proto_fast._slot_builder(cls)
         built = make(*values)
         assert type(built) is cls
         assert built == cls(*values) and repr(built) == repr(cls(*values))
@@ -258,7 +260,7 @@ def test_slot_builder_matches_the_dataclass_init() -> None:
         with pytest.raises(dataclasses.FrozenInstanceError):
             setattr(built, dataclasses.fields(cls)[0].name, 0)
     with pytest.raises(TypeError, match="plain slots dataclass"):
-        proto._slot_builder(proto.SeenObject)
+        proto_fast._slot_builder(proto.SeenObject)
 
 
 def test_safe_parser_uses_the_fast_path_and_counts() -> None:

@@ -710,6 +710,7 @@ class RoboCupClient:
         """Blocking reads until a (think) arrives (True) or the deadline passes (False)."""
         recv = conn.sock.recv
         inbox = conn.inbox
+        marker = self._marker
         while True:
             try:
                 data = recv(_BUFSIZE)
@@ -719,7 +720,7 @@ class RoboCupClient:
                     return False
                 continue
             inbox.append(data)
-            if data.startswith(self._marker):
+            if data.startswith(marker):
                 conn.pending = True
                 conn.thought = True
                 return True
@@ -728,6 +729,7 @@ class RoboCupClient:
         """Non-blocking: take everything queued; True if a (think) was among it."""
         recv = conn.sock.recv
         inbox = conn.inbox
+        marker = self._marker
         found = False
         while True:
             try:
@@ -737,7 +739,7 @@ class RoboCupClient:
             except ConnectionRefusedError:
                 raise self._died("refused our datagrams (its ports are closed)") from None
             inbox.append(data)
-            if data.startswith(self._marker):
+            if data.startswith(marker):
                 if conn.pending:
                     # A (think) nobody answered is superseded: one (done) answers the newest.
                     self.stats.stale_thinks += 1

@@ -16,23 +16,23 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import elevens
-from elevens.bench.cli_bench import TrainBenchArgs
 from elevens.cli import main
-from elevens.cli_checks import NUMERIC_RANGES
-from elevens.eval.cli_eval import (
+from elevens.cli.bench import TrainBenchArgs
+from elevens.cli.checks import NUMERIC_RANGES
+from elevens.cli.eval import (
     AnalyzeArgs,
     CurvesArgs,
     RenderArgs,
     TournamentArgs,
     ViewArgs,
 )
-from elevens.eval.replay import Replay, ReplayError, load_replay, save_replay
-from elevens.robocup.cli_robocup import (
+from elevens.cli.robocup import (
     RoboCupBenchArgs,
     RoboCupPlayArgs,
     RoboCupServeArgs,
     RoboCupTrainArgs,
 )
+from elevens.eval.replay import Replay, ReplayError, load_replay, save_replay
 from elevens.train.checkpoint import Checkpointer, CheckpointError
 
 ARG_CLASSES = (
@@ -44,7 +44,7 @@ FIXTURES = [HealthCheck.function_scoped_fixture]  # tmp_path and capsys serve ev
 
 
 def _cli_arg_classes() -> tuple[type, ...]:
-    from elevens import cli
+    from elevens.cli import app as cli
 
     return (*ARG_CLASSES, cli.PlayArgs, cli.EnvBenchArgs, cli.ExportTeamArgs)
 

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from elevens.eval.cli_eval import main as eval_main
-from elevens.eval.curves import Series, band, first_above, plot_learning_curves, run_series
-from elevens.train.logging import RunLogger, read_metrics_csv
+from elevens.cli.eval import main as eval_main
+from elevens.runs.curves import Series, band, first_above, plot_learning_curves, run_series
+from elevens.runs.logging import RunLogger, read_metrics_csv
 
 
 def _write_run(run_dir, seed: int, iterations=range(0, 101, 10)) -> None:

@@ -207,7 +207,7 @@ def test_teams_of_one_analysis_share_a_colour_scale_with_whole_team_and_ball_pan
 def test_analyze_command_writes_metrics_heatmaps_and_replays(tmp_path, capsys) -> None:
     import json
 
-    from elevens.eval.cli_eval import main as eval_main
+    from elevens.cli.eval import main as eval_main
     from elevens.eval.replay import load_replay
 
     out = tmp_path / "analysis"

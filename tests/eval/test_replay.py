@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 import elevens
+from elevens.cli.eval import main as eval_main
 from elevens.env.render import frames_from_states
-from elevens.eval.cli_eval import main as eval_main
 from elevens.eval.match import play_match
 from elevens.eval.play import states_from_record
 from elevens.eval.replay import (

@@ -7,7 +7,7 @@ import dataclasses
 import pytest
 
 import elevens
-from elevens.eval.teams import Team, common_field, fit_to_field, load_team
+from elevens.runs.teams import Team, common_field, fit_to_field, load_team
 from elevens.teams.scripted import Field, NaiveTeam
 
 

@@ -17,9 +17,10 @@ import numpy as np
 import pytest
 
 import elevens
-from elevens.eval.cli_eval import main as eval_main
+from elevens.cli.eval import main as eval_main
 from elevens.eval.match import MatchResult, outcome_from_score, play_match
-from elevens.eval.teams import (
+from elevens.eval.tournament import play_round_robin, schedule, table_from_results
+from elevens.runs.teams import (
     Team,
     check_team_size,
     load_checkpoint_team,
@@ -27,7 +28,6 @@ from elevens.eval.teams import (
     parse_team_spec,
     unique_names,
 )
-from elevens.eval.tournament import play_round_robin, schedule, table_from_results
 from elevens.teams.scripted import NaiveTeam, RandomTeam
 
 
@@ -147,7 +147,7 @@ def checkpoint_2v2(tmp_path_factory):
     (a TrainState in <run>/checkpoints/<iteration>), plus its bare policy variables."""
     from elevens.train.checkpoint import Checkpointer
     from elevens.train.config import make_config
-    from elevens.train.trainer import make_trainer
+    from elevens.train.learner import make_learner
 
     config = make_config(
         "2v2",
@@ -157,7 +157,7 @@ def checkpoint_2v2(tmp_path_factory):
             "ppo.minibatch_size": 4, "run.eval_deterministic": True,
         },
     )
-    state = make_trainer(config).init(jax.random.key(0))
+    state = make_learner(config).init(jax.random.key(0))
     run = tmp_path_factory.mktemp("run")
     with Checkpointer(run / "checkpoints") as checkpointer:
         checkpointer.save(3, state, config.to_dict(), {"iteration": 3})

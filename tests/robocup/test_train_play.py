@@ -24,11 +24,13 @@ import pytest
 from elevens.cli import main
 from elevens.env.soccer import Soccer
 from elevens.robocup.play import load_robocup_team, play_robocup
-from elevens.robocup.train import EPISODES_CSV, RoboCupTrainConfig, play_iteration, train_robocup
+from elevens.robocup.train import RoboCupTrainConfig, play_iteration, train_robocup
+from elevens.runs.layout import EPISODES_CSV
+from elevens.runs.logging import read_metrics_csv
+from elevens.runs.resume import RunRefusedError
 from elevens.train.checkpoint import Checkpointer
 from elevens.train.config import make_config
-from elevens.train.logging import read_metrics_csv
-from elevens.train.trainer import RunRefusedError, make_trainer
+from elevens.train.learner import make_learner
 from tests.robocup.conftest import needs_rcssserver, wait_stopped
 
 
@@ -100,15 +102,15 @@ def small_config(tmp_path: Path, **overrides: Any) -> RoboCupTrainConfig:
 def test_config_rejects_bad_values_by_name() -> None:
     with pytest.raises(ValueError, match="servers=0"):
         RoboCupTrainConfig(servers=0)
-    with pytest.raises(ValueError, match="opponent='league'"):
-        RoboCupTrainConfig(opponent="league")
+    with pytest.raises(ValueError, match="opponent='neighbours' is invalid: it must be 'polyak'"):
+        RoboCupTrainConfig(opponent="neighbours")
     with pytest.raises(ValueError, match="learning_rate=-0.1"):
         RoboCupTrainConfig(learning_rate=-0.1)
 
 
 def test_play_iteration_packs_a_rollout_like_the_compiled_one(tmp_path: Path) -> None:
     config = small_config(tmp_path, players_per_team=2, episode_length=6)
-    trainer = make_trainer(config.train_config())
+    trainer = make_learner(config.train_config())
     state = trainer.init(jax.random.key(0))
     from elevens.robocup.train import make_actor
 
@@ -143,7 +145,7 @@ def test_an_external_opponent_leaves_the_learner_on_the_left_and_its_side_unplay
     tmp_path: Path,
 ) -> None:
     config = small_config(tmp_path, players_per_team=2, episode_length=4)
-    trainer = make_trainer(config.train_config())
+    trainer = make_learner(config.train_config())
     state = trainer.init(jax.random.key(0))
     from elevens.robocup.train import make_actor
 
@@ -212,6 +214,23 @@ def test_train_writes_episodes_checkpoints_and_resumes(tmp_path: Path) -> None:
     assert (run / "checkpoints" / "3").is_dir()
     # The checkpoint is a normal one: it loads as a team for the simulator and the server.
     team = load_robocup_team(str(run), "sim")
+    assert team.name
+
+
+@pytest.mark.parametrize("kind", ["self", "league"])
+def test_every_opponent_kind_trains_in_the_server_loop(tmp_path: Path, kind: str) -> None:
+    # The server loop improves through the learner's own opponent strategies: a league's
+    # snapshots play their games one network per game, and its metrics are logged.
+    config = small_config(tmp_path, opponent=kind, iterations=2)
+    result = train_robocup(config, env_factory=lambda i: SimEnv(1), print_fn=lambda _: None)
+    assert result.iterations == 2
+    logged = read_metrics_csv(tmp_path / "run")
+    name, expected = (
+        ("opponent/league_size", [1.0, 1.0]) if kind == "league"
+        else ("opponent/updates", [1.0, 2.0])  # self-play: a copy of the learner every time
+    )
+    assert logged[name].values.tolist() == expected
+    team = load_robocup_team(str(tmp_path / "run"), "sim")
     assert team.name
 
 
@@ -338,7 +357,7 @@ def test_server_naive_plays_random() -> None:
 def test_init_from_a_checkpoint_starts_from_its_networks_and_resumes_with_them(
     tmp_path: Path,
 ) -> None:
-    from elevens.train.trainer import load_learner_params
+    from elevens.runs.resume import load_learner_params
 
     # A source with a non-default network, written by hand (an init, no training).
     source_config = make_config(
@@ -346,7 +365,7 @@ def test_init_from_a_checkpoint_starts_from_its_networks_and_resumes_with_them(
         **{"env.scenario": "1v1", "ppo.batch_size": 64, "network.features": 16,
            "network.num_heads": 2, "network.lstm_features": 8},
     )
-    source_state = make_trainer(source_config).init(jax.random.key(3))
+    source_state = make_learner(source_config).init(jax.random.key(3))
     with Checkpointer(tmp_path / "source" / "checkpoints") as checkpointer:
         checkpointer.save(0, source_state, source_config.to_dict(), {"iteration": 0})
     # No time to play: the run saves its starting point, which must be the source's networks.

@@ -12,7 +12,8 @@ import pytest
 
 from elevens.cli import main
 from elevens.eval.replay import load_replay
-from elevens.eval.teams import export_team, load_team, parse_team_spec
+from elevens.runs.resume import load_learner_params
+from elevens.runs.teams import export_team, load_team, parse_team_spec
 from elevens.teams.trained import (
     NETWORKS_FILE,
     ShippedTeamError,
@@ -20,7 +21,7 @@ from elevens.teams.trained import (
     shipped_team_names,
 )
 from elevens.train.checkpoint import Checkpointer
-from elevens.train.trainer import load_learner_params, make_trainer
+from elevens.train.learner import make_learner
 from tests.train.test_trainer import leaves_equal, tiny_config
 
 SHIPPED = ("elevens-11v11", "elevens-2v2")
@@ -34,7 +35,7 @@ def checkpoint(tmp_path_factory: pytest.TempPathFactory) -> Path:
     config = tiny_config(
         run, **{"env.scenario": "2v2", "ppo.batch_size": 128, "ppo.minibatch_size": 32}
     )
-    state = make_trainer(config).init(jax.random.key(11))
+    state = make_learner(config).init(jax.random.key(11))
     with Checkpointer(run / "checkpoints") as checkpointer:
         checkpointer.save(0, state, config.to_dict(), {"iteration": 0})
     return run

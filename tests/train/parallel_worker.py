@@ -47,11 +47,11 @@ def flat(tree: object, prefix: str) -> dict[str, np.ndarray]:
 
 
 def devices_mode(out: str) -> None:
-    from elevens.train.trainer import make_trainer
+    from elevens.train.learner import make_learner
 
     arrays: dict[str, np.ndarray] = {}
     for devices in (1, 2):
-        trainer = make_trainer(make_config("quickstart", **TINY, **{"run.devices": devices}))
+        trainer = make_learner(make_config("quickstart", **TINY, **{"run.devices": devices}))
         state = trainer.init(jax.random.key(0))
         state, metrics = trainer.update_chunk(state)
         arrays.update(flat(state.params, f"{devices}/params"))
@@ -97,7 +97,7 @@ def process_mode(out: str, run_dir: str, coordinator: str, process_id: int) -> N
     from elevens.train.parallel import initialize_distributed
 
     initialize_distributed(coordinator, 2, process_id)
-    from elevens.train.trainer import train
+    from elevens.runs.loop import train
 
     config = process_config(run_dir)
     sys.addaudithook(audit)

@@ -172,7 +172,7 @@ def test_validate_catches_a_config_built_by_hand() -> None:
 def test_validation_is_fast_and_compiles_nothing() -> None:
     # Errors must come before any tracing: a bad config fails in well under a second, and the
     # trainer factory refuses it before building anything.
-    from elevens.train.trainer import make_trainer
+    from elevens.train.learner import make_learner
 
     config = make_config("11v11")
     bad_ppo = dataclasses.replace(config.ppo)
@@ -180,7 +180,7 @@ def test_validation_is_fast_and_compiles_nothing() -> None:
     bad = dataclasses.replace(config, ppo=bad_ppo)
     start = time.perf_counter()
     with pytest.raises(ValueError, match="learning_rate"):
-        make_trainer(bad)
+        make_learner(bad)
     assert time.perf_counter() - start < 0.5
 
 
@@ -250,8 +250,8 @@ def test_config_differences_ignore_host_loop_fields() -> None:
 def test_cli_args_parse_a_preset_with_flag_overrides() -> None:
     import tyro
 
-    from elevens.bench.cli_bench import TrainBenchArgs
-    from elevens.train.cli_train import TrainArgs, command_flags_first
+    from elevens.cli.bench import TrainBenchArgs
+    from elevens.cli.train import TrainArgs, command_flags_first
 
     args = tyro.cli(
         TrainArgs,
@@ -279,7 +279,7 @@ def test_cli_args_parse_a_preset_with_flag_overrides() -> None:
 def test_cli_train_validates_before_compiling(capsys: pytest.CaptureFixture[str]) -> None:
     import tyro
 
-    from elevens.train.cli_train import TrainArgs, train_command
+    from elevens.cli.train import TrainArgs, train_command
 
     start = time.perf_counter()
     # PPOHyperparams refuses the value while tyro builds the config: usage error, exit code 2.

@@ -12,7 +12,7 @@ import pytest
 from rich.console import Console
 from tensorboardX.proto import event_pb2
 
-from elevens.train.logging import (
+from elevens.runs.logging import (
     EVENTS_LOG,
     METRICS_CSV,
     RunLogger,

@@ -10,9 +10,11 @@ import jax
 import numpy as np
 import pytest
 
+from elevens.runs.logging import read_metrics_csv
+from elevens.runs.loop import train
+from elevens.runs.teams import team_on_field
 from elevens.train.config import make_config, opponent_mix, self_play_games
-from elevens.train.logging import read_metrics_csv
-from elevens.train.trainer import make_trainer, train
+from elevens.train.learner import make_learner
 from tests.train.test_trainer import tiny_config
 
 
@@ -52,7 +54,7 @@ def test_self_play_and_fixed_teams_share_the_games_and_are_reported_apart() -> N
         }
     )
     assert opponent_mix(config) == [("self", 32), ("naive", 16), ("random", 16)]
-    trainer = make_trainer(config)
+    trainer = make_learner(config, team_on_field)
     state = trainer.init(jax.random.key(0))
     assert state.opponent.indices.shape == (32,)  # league snapshots for self-play games only
     state, metrics = trainer.update_chunk(state)
@@ -88,13 +90,15 @@ def test_a_league_needs_self_play_and_an_unknown_team_is_named() -> None:
         tiny_config(**{"opponent.kind": "league", "opponent.mix": ("naive=1",)})
     assert self_play_games(tiny_config(**{"opponent.mix": ("naive=0.25",)})) == 48
     with pytest.raises(ValueError, match="opponent.mix team .nobody.: team spec: nobody does not"):
-        make_trainer(make_config("quickstart", **{"opponent.mix": ("nobody=0.5",)}))
+        make_learner(make_config("quickstart", **{"opponent.mix": ("nobody=0.5",)}), team_on_field)
+    with pytest.raises(ValueError, match="names fixed teams: pass load_team"):
+        make_learner(make_config("quickstart", **{"opponent.mix": ("naive=0.5",)}))
 
 
 def test_evaluation_tracks_a_trained_team_and_refuses_an_unknown_one(tmp_path: Path) -> None:
-    from elevens.train.trainer import evaluate
+    from elevens.runs.loop import evaluate
 
-    trainer = make_trainer(tiny_config())
+    trainer = make_learner(tiny_config())
     state = trainer.init(jax.random.key(0))
     results = evaluate(trainer, state, jax.random.key(1), teams=("elevens-2v2", "naive"),
                        num_games=4)

@@ -15,10 +15,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from elevens.cli.train import command_flags_first
+from elevens.runs.loop import train
+from elevens.runs.resume import RunRefusedError
 from elevens.train import parallel
-from elevens.train.cli_train import command_flags_first
 from elevens.train.config import make_config
-from elevens.train.trainer import RunRefusedError, make_trainer, train
+from elevens.train.learner import make_learner
 from tests.train.parallel_worker import TINY, process_config
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -96,7 +98,7 @@ def test_device_counts_that_do_not_split_the_games_are_refused() -> None:
         parallel.check_divisible("run.games_per_iteration", 5, two_devices, "fix")  # type: ignore[arg-type]
     parallel.check_divisible("run.games_per_iteration", 6, two_devices, "fix")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match=r"run.devices=3 is invalid: give 0 .* or 1 to 1"):
-        make_trainer(make_config("quickstart", **TINY, **{"run.devices": 3}))
+        make_learner(make_config("quickstart", **TINY, **{"run.devices": 3}))
     with pytest.raises(ValueError, match=r"run.devices=-1 is invalid"):
         make_config("quickstart", **{"run.devices": -1})
 

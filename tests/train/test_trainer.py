@@ -16,20 +16,18 @@ import numpy as np
 import optax
 import pytest
 
-from elevens.train import trainer as trainer_module
+from elevens.cli.train import TrainArgs, train_command
+from elevens.nets import capacity as capacity_module
+from elevens.runs import loop as loop_module
+from elevens.runs import resume as resume_module
+from elevens.runs.layout import CHECKPOINT_DIR
+from elevens.runs.logging import read_metrics_csv
+from elevens.runs.loop import evaluate, train
+from elevens.runs.resume import RunRefusedError
+from elevens.train import learner as learner_module
 from elevens.train.checkpoint import TREE_FILE, Checkpointer
-from elevens.train.cli_train import TrainArgs, train_command
 from elevens.train.config import TrainConfig, make_config, validate
-from elevens.train.logging import read_metrics_csv
-from elevens.train.trainer import (
-    CHECKPOINT_DIR,
-    RunRefusedError,
-    Trainer,
-    TrainState,
-    evaluate,
-    make_trainer,
-    train,
-)
+from elevens.train.learner import Learner, TrainState, make_learner
 from tests.train.test_checkpoint import files_under
 
 BASE = {
@@ -69,11 +67,11 @@ def tiny_config(run_dir: Path | str = "unused", **overrides: Any) -> TrainConfig
     return make_config("quickstart", **{**BASE, "run.run_dir": str(run_dir), **overrides})
 
 
-def uncached_trainer(config: TrainConfig) -> Trainer:
-    """A trainer built past make_trainer's small cache, so that tests which only trace, or which
+def uncached_trainer(config: TrainConfig) -> Learner:
+    """A trainer built past make_learner's small cache, so that tests which only trace, or which
     patch module constants, do not evict the compiled trainers the other tests share."""
     validate(config)
-    return trainer_module._build_trainer.__wrapped__(config)
+    return learner_module._build_learner.__wrapped__(config, None)
 
 
 def leaves_equal(a: Any, b: Any) -> bool:
@@ -100,7 +98,7 @@ def leaves_equal(a: Any, b: Any) -> bool:
 
 def test_update_chunk_runs_compiles_once_and_is_deterministic() -> None:
     config = tiny_config()
-    trainer = make_trainer(config)
+    trainer = make_learner(config)
     state = trainer.init(jax.random.key(0))
     first, metrics = trainer.update_chunk(state)
     second, _ = trainer.update_chunk(first)
@@ -126,14 +124,14 @@ def test_update_chunk_runs_compiles_once_and_is_deterministic() -> None:
     assert leaves_equal(trainer.init(jax.random.key(0)), state)
     assert not leaves_equal(trainer.init(jax.random.key(1)).params, state.params)
     # A rebuilt trainer for a run differing only in host-loop fields reuses the compiled chunk.
-    other = make_trainer(tiny_config("elsewhere", **{"run.iterations": 9}))
+    other = make_learner(tiny_config("elsewhere", **{"run.iterations": 9}))
     assert other.update_chunk is trainer.update_chunk
 
 
 def test_configs_with_the_same_networks_share_their_initialisation() -> None:
     config = tiny_config()
-    trainer = make_trainer(config)
-    other = make_trainer(tiny_config(**{"ppo.learning_rate": 1e-3, "opponent.kind": "self"}))
+    trainer = make_learner(config)
+    other = make_learner(tiny_config(**{"ppo.learning_rate": 1e-3, "opponent.kind": "self"}))
     assert other is not trainer
     state, other_state = trainer.init(jax.random.key(4)), other.init(jax.random.key(4))
     assert leaves_equal(state.params, other_state.params)
@@ -170,10 +168,10 @@ def test_compacted_update_equals_the_dense_update(monkeypatch: pytest.MonkeyPatc
             "ppo.epochs": 2,
         },
     )
-    assert trainer_module._compacts(config)
+    assert capacity_module.compacts(config.network.use_attention, config.env.players_per_team)
     updates = []
     for fractions in ((), (1.0,), (0.05,)):
-        monkeypatch.setattr(trainer_module, "VISIBLE_FRACTIONS", fractions)
+        monkeypatch.setattr(capacity_module, "VISIBLE_FRACTIONS", fractions)
         trainer = uncached_trainer(config)  # reads the patched VISIBLE_FRACTIONS
         if not updates:  # one rollout for all three: the same init and data
             state = trainer.init(jax.random.key(0))
@@ -192,7 +190,7 @@ def test_compacted_update_equals_the_dense_update(monkeypatch: pytest.MonkeyPatc
 
 
 def test_polyak_freeze_rule_follows_the_mean_score() -> None:
-    trainer = make_trainer(tiny_config())
+    trainer = make_learner(tiny_config())
     state = trainer.init(jax.random.key(0))
     new_state, metrics = trainer.update_chunk(state)
     frozen = np.asarray(metrics["opponent/frozen"]) == 1.0
@@ -228,8 +226,8 @@ def test_variants_trace(overrides: dict) -> None:
 
 
 def test_squashed_entropy_bonus_is_the_action_entropy_estimate() -> None:
-    gaussian = make_trainer(tiny_config(**{"run.games_per_iteration": 16, "ppo.batch_size": 16}))
-    squashed = make_trainer(
+    gaussian = make_learner(tiny_config(**{"run.games_per_iteration": 16, "ppo.batch_size": 16}))
+    squashed = make_learner(
         tiny_config(
             **{
                 "run.games_per_iteration": 16,
@@ -258,7 +256,7 @@ def test_league_opponents_run() -> None:
     overrides: dict[str, Any] = {
         "opponent.kind": "league", "opponent.league_every": 2, "opponent.league_capacity": 3
     }
-    league = make_trainer(tiny_config(**overrides))
+    league = make_learner(tiny_config(**overrides))
     state = league.init(jax.random.key(0))
     assert state.opponent.league is not None and int(state.opponent.league.size) == 1
     state, metrics = league.update_chunk(state)  # iterations 1, 2: a snapshot joins after 2
@@ -282,7 +280,7 @@ def test_league_opponents_run() -> None:
 
 @pytest.mark.slow
 def test_self_play_copies_the_learner() -> None:
-    self_play = make_trainer(tiny_config(**{"opponent.kind": "self"}))
+    self_play = make_learner(tiny_config(**{"opponent.kind": "self"}))
     state = self_play.init(jax.random.key(0))
     state, _ = self_play.update_chunk(state)
     assert state.opponent.polyak is not None
@@ -418,7 +416,7 @@ def test_ctrl_c_writes_a_checkpoint_and_the_run_can_continue(tmp_path: Path) -> 
 def test_an_interrupted_command_exits_130_with_its_checkpoint_written(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    real_train = trainer_module.train
+    real_train = loop_module.train
 
     def ctrl_c_after_the_first_chunk(config: TrainConfig, **kwargs: Any) -> Any:
         def stop(state: TrainState, metrics: Mapping[str, float]) -> None:
@@ -426,7 +424,7 @@ def test_an_interrupted_command_exits_130_with_its_checkpoint_written(
 
         return real_train(config, on_chunk=stop, **kwargs)
 
-    monkeypatch.setattr(trainer_module, "train", ctrl_c_after_the_first_chunk)
+    monkeypatch.setattr(loop_module, "train", ctrl_c_after_the_first_chunk)
     config = tiny_config(tmp_path, **{"run.iterations": 4, "run.eval_every": 0})
     with pytest.raises(SystemExit) as exit_info:
         train_command(TrainArgs(config=config, progress=False))
@@ -462,7 +460,7 @@ def test_a_run_starts_from_another_team_sizes_networks(tmp_path: Path) -> None:
     source_config = tiny_config(
         **{"env.scenario": "2v2", "ppo.batch_size": 128, "ppo.minibatch_size": 32}
     )
-    source_state = make_trainer(source_config).init(jax.random.key(7))
+    source_state = make_learner(source_config).init(jax.random.key(7))
     source = source_state.params
     with Checkpointer(tmp_path / "source" / CHECKPOINT_DIR) as checkpointer:
         checkpointer.save(0, source_state, source_config.to_dict(), {"iteration": 0})
@@ -470,9 +468,9 @@ def test_a_run_starts_from_another_team_sizes_networks(tmp_path: Path) -> None:
     config = tiny_config(tmp_path / "run", **{
         "run.init_from": str(tmp_path / "source"), "run.iterations": 2, "run.eval_every": 0,
     })
-    fresh = make_trainer(config).init(jax.random.key(0))
+    fresh = make_learner(config).init(jax.random.key(0))
     assert not leaves_equal(fresh.params, source)  # the seeds differ: a real test
-    started = make_trainer(config).init(jax.random.key(0), trainer_module.load_start_params(
+    started = make_learner(config).init(jax.random.key(0), resume_module.load_start_params(
         config.run.init_from, config)[1])
     assert leaves_equal(started.params, source)
     assert leaves_equal(started.opponent.polyak.params, source.policy)
@@ -481,7 +479,7 @@ def test_a_run_starts_from_another_team_sizes_networks(tmp_path: Path) -> None:
     # random init.
     result = train(config, progress=False)
     assert result.iteration == 2
-    trained = trainer_module.load_learner_params(str(tmp_path / "run"))[1]
+    trained = resume_module.load_learner_params(str(tmp_path / "run"))[1]
 
     def distance(a: Any, b: Any) -> float:
         return float(optax.tree.norm(jax.tree.map(jnp.subtract, a, b)))
@@ -570,7 +568,7 @@ LEARNING_ITERATIONS = 40
 
 
 def test_short_run_learns_to_beat_the_random_team() -> None:
-    trainer = make_trainer(tiny_config())
+    trainer = make_learner(tiny_config())
     state = trainer.init(jax.random.key(0))
     eval_key = jax.random.key(123)
     before = evaluate(trainer, state, eval_key)["eval/random/outcome"]

@@ -151,7 +151,7 @@ def bench_train(
     """Time one training iteration of ``players`` a side and its parts (see the module doc).
     With ``devices`` > 1 the games split over that many devices; then, or without ``parts``,
     only the whole iteration is timed (the parts are NaN)."""
-    from elevens.train.trainer import make_trainer
+    from elevens.train.learner import make_learner
 
     games = max(1, 660 // players) if games is None else games
     units = games * players
@@ -186,7 +186,7 @@ def bench_train(
             "run.devices": devices,
         },
     )
-    trainer = make_trainer(config)
+    trainer = make_learner(config)
     state = trainer.init(jax.random.key(0))
 
     def full() -> Any:

@@ -22,6 +22,11 @@ from elevens.env.state import GlobalState, Observation, State, StepInfo
 SCENARIO = re.compile(r"^(\d+)v(\d+)$")
 
 
+def applied_actions(actions: jax.Array) -> jax.Array:
+    """The actions as the env applies them: NaN counts as 0, the rest clipped to [-1, 1]."""
+    return jnp.clip(jnp.where(jnp.isnan(actions), 0.0, actions), -1.0, 1.0)
+
+
 class Soccer:
     """A 2D soccer game of ``n`` against ``n`` players. Pure functions; jit and vmap freely.
 
@@ -92,7 +97,7 @@ class Soccer:
         self._check_params(params)
         self.check_actions(actions)
         flat_actions = actions.reshape(self.num_players, 2).astype(jnp.float32)
-        flat_actions = jnp.clip(jnp.where(jnp.isnan(flat_actions), 0.0, flat_actions), -1.0, 1.0)
+        flat_actions = applied_actions(flat_actions)
 
         positions, headings = physics.move_players(
             state.positions, state.headings, flat_actions, params

@@ -19,9 +19,11 @@ import numpy as np
 from flax import struct
 
 from elevens.env.params import EnvParams
-from elevens.env.soccer import Soccer
+from elevens.env.soccer import Soccer, applied_actions
 from elevens.env.state import Observation, State
 from elevens.teams.base import Carry, TeamPolicy
+from elevens.train.opponents import game_outcome as outcome_from_score
+from elevens.train.rollout import learner_sides as home_sides
 
 DEFAULT_CHUNK_SIZE = 128
 """Games vmapped together. Small batches keep the observations in cache (PERFORMANCE_NOTES.md):
@@ -67,21 +69,6 @@ class _GameInput(struct.PyTreeNode):
     home_side: jax.Array  # i32[]
 
 
-def outcome_from_score(goals_for: jax.Array, goals_against: jax.Array) -> jax.Array:
-    """f32[...]: 1 where goals_for > goals_against, 0.5 on a draw, 0 on a loss."""
-    return jnp.where(
-        goals_for > goals_against, 1.0, jnp.where(goals_for == goals_against, 0.5, 0.0)
-    ).astype(jnp.float32)
-
-
-def home_sides(num_games: int, swap_sides: bool = True) -> np.ndarray:
-    """i32[G]: side 0 for the first ceil(G/2) games and side 1 for the rest when swap_sides."""
-    sides = np.zeros(num_games, np.int32)
-    if swap_sides:
-        sides[(num_games + 1) // 2 :] = 1
-    return sides
-
-
 def _side_view(obs: Observation, side: jax.Array) -> Observation:
     """The observation of team ``side`` (traced i32[]), as a select, not a gather."""
     first, second = obs.team(0), obs.team(1)
@@ -123,7 +110,7 @@ def _play_game(
             jnp.stack([away_actions, home_actions]),
         ).astype(jnp.float32)
         # What the env applies (it clips, and NaN counts as 0), so the record holds that.
-        actions = jnp.clip(jnp.where(jnp.isnan(actions), 0.0, actions), -1.0, 1.0)
+        actions = applied_actions(actions)
         state, _, _, info = env.transition(env_key, carry.state, actions, params)
         history = None
         if record:

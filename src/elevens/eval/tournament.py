@@ -33,7 +33,7 @@ from elevens.env.params import EnvParams
 from elevens.env.soccer import Soccer
 from elevens.eval.match import DEFAULT_CHUNK_SIZE, MatchResult, play_match
 from elevens.eval.ratings import GameCounts, Ratings, fit_bradley_terry
-from elevens.eval.teams import Team
+from elevens.teams.base import Team
 
 FORMAT = "elevens-tournament"
 VERSION = 1

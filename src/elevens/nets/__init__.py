@@ -1,6 +1,6 @@
 """Flax networks of the learner: the attention + LSTM policy with a tanh-squashed Gaussian, the
-attention critic, their feedforward ablations (config switches), and NetworkTeam, which plays a
-policy through the TeamPolicy interface."""
+attention critic and their feedforward ablations (config switches). ``elevens.teams.network``
+plays a policy through the TeamPolicy interface."""
 
 from elevens.nets.attention import FF2, AttentionPool, MaskedMultiHeadAttention, masked_softmax
 from elevens.nets.critic import AttentionCritic
@@ -19,7 +19,6 @@ from elevens.nets.policy import (
     RecurrentCore,
     reset_carry,
 )
-from elevens.teams.network import NetworkTeam
 
 __all__ = [
     "FF2",
@@ -30,7 +29,6 @@ __all__ = [
     "AttentionPool",
     "LSTMState",
     "MaskedMultiHeadAttention",
-    "NetworkTeam",
     "PolicyCarry",
     "PolicyOutput",
     "RecurrentCore",

@@ -67,7 +67,7 @@ def load_robocup_team(
             f"team {spec!r} is a checkpoint: it plays (move, rot) actions, so the action mode "
             f"must be 'sim', not {action!r}"
         )
-    from elevens.eval.teams import load_team
+    from elevens.runs.teams import load_team
 
     team = load_team(spec, deterministic=deterministic)
     policy = team.policy

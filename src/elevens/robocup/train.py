@@ -34,14 +34,13 @@ import jax.numpy as jnp
 import numpy as np
 
 from elevens.env.state import GlobalState, Observation
-from elevens.train import opponents as opp
+from elevens.runs.layout import RunLayout
 from elevens.train.config import TrainConfig, make_config
+from elevens.train.opponents import OPPONENT_KINDS
 from elevens.train.rollout import Rollout, Transition, learner_sides
-from elevens.train.shaping import shaping_update
 
 log = logging.getLogger(__name__)
 
-EPISODES_CSV = "episodes.csv"
 EPISODE_FIELDS = (
     "iteration", "game", "learner_side", "goals_for", "goals_against", "steps", "server_cycles",
     "restarts", "missed", "malformed", "ball_returned", "wall_s",
@@ -69,7 +68,8 @@ class RoboCupTrainConfig:
     keep_ball_in_play: bool = True
     """Put the ball back at the lines instead of kick-ins (the thesis did this while shaping)."""
     opponent: str = "polyak"
-    """"polyak" (freeze rule of section 5.2.6) or "self" (plain self-play)."""
+    """"polyak" (freeze rule of section 5.2.6), "self" (plain self-play) or "league" (past
+    snapshots by win rate, section 5.2.7): the simulator's opponent strategies."""
     learning_rate: float = 1e-4
     """Adam's learning rate (table 6.1)."""
     init_from: str | None = None
@@ -103,7 +103,7 @@ class RoboCupTrainConfig:
             ("episode_length", self.episode_length >= 2, "an int >= 2"),
             ("iterations", self.iterations >= 1, "an int >= 1"),
             ("minutes", self.minutes is None or self.minutes > 0, "None or > 0"),
-            ("opponent", self.opponent in ("polyak", "self"), "'polyak' or 'self'"),
+            ("opponent", self.opponent in OPPONENT_KINDS, " or ".join(map(repr, OPPONENT_KINDS))),
             ("learning_rate", self.learning_rate > 0, "> 0"),
             ("checkpoint_every", self.checkpoint_every >= 1, "an int >= 1"),
             (
@@ -190,13 +190,15 @@ def _pick(tree: Any, sides: np.ndarray) -> Any:
     return jax.tree.map(lambda leaf: leaf[index, sides], tree)
 
 
-def make_actor(policy: Any) -> Callable[..., Any]:
+def make_actor(policy: Any, per_game: bool = False) -> Callable[..., Any]:
     """Jitted: (params, carry, obs [G, n], reset bool[G, n], key) ->
-    (carry, pre_tanh f32[G, n, 2], log_prob f32[G, n], action f32[G, n, 2])."""
+    (carry, pre_tanh f32[G, n, 2], log_prob f32[G, n], action f32[G, n, 2]). ``per_game``:
+    params with a leading [G] axis, one network per game (a league's snapshots)."""
+    apply = jax.vmap(policy.apply) if per_game else policy.apply
 
     @jax.jit
     def act(params: Any, carry: Any, obs: Observation, reset: jax.Array, key: jax.Array) -> Any:
-        carry, output = policy.apply(params, carry, obs, reset)
+        carry, output = apply(params, carry, obs, reset)
         distribution = output.distribution()
         sample = distribution.sample(key)
         return carry, sample.pre_tanh, distribution.log_prob(sample.pre_tanh), sample.action
@@ -235,10 +237,12 @@ def play_iteration(
     seed: int,
     pool: ThreadPoolExecutor | None = None,
     external_opponent: bool = False,
+    opponent_act: Callable[..., Any] | None = None,
 ) -> tuple[Rollout, list[_GameLog]]:
     """One episode of every game (learner against opponent) packed as a ``Rollout``. With an
     ``external_opponent`` the learner plays the left side of every game and the opponent's
-    actions are not computed (the other program plays them)."""
+    actions are not computed (the other program plays them). ``opponent_act``: how the
+    opponent acts when it differs from ``act`` (one network per game: a league's)."""
     num_games = len(envs)
     sides = np.zeros(num_games, np.int32) if external_opponent else learner_sides(num_games)
     others = 1 - sides
@@ -276,7 +280,7 @@ def play_iteration(
         actions = np.zeros((num_games, 2, n, 2), np.float32)
         actions[index, sides] = np.asarray(learner_action)
         if not external_opponent:
-            opponent_carry, _, _, opponent_action = act(
+            opponent_carry, _, _, opponent_action = (opponent_act or act)(
                 opponent_params, opponent_carry, opponent_obs, player_reset, step_keys[t, 1]
             )
             actions[index, others] = np.asarray(opponent_action)
@@ -380,83 +384,55 @@ def train_robocup(
     env_factory: EnvFactory | None = None,
     print_fn: Callable[[str], None] = print,
 ) -> RoboCupTrainResult:
-    """Run ``config``: iterations of G server games and a PPO update, until ``iterations`` or
-    ``minutes``. Ctrl-C writes a checkpoint and stops cleanly; ``resume`` continues the latest
-    checkpoint of ``run_dir``."""
+    """Run ``config``: iterations of G server games and the learner's ``improve`` (advantages,
+    PPO epochs, opponent strategy, shaping schedule: the simulator's, compiled), until
+    ``iterations`` or ``minutes``. Ctrl-C writes a checkpoint and stops cleanly; ``resume``
+    continues the latest checkpoint of ``run_dir``."""
+    from elevens.runs.logging import RunLogger
     from elevens.train.checkpoint import Checkpointer
-    from elevens.train.logging import RunLogger
-    from elevens.train.trainer import (
-        TrainState,
-        check_resumable,
-        latest_resumable_step,
-        load_learner_params,
-        make_trainer,
-    )
 
     began = time.perf_counter()
-    train_config = config.train_config()
-    source_params = None
-    if config.init_from is not None:
-        # The source's networks (their sizes and switches) carry over; PPO and the rest are ours.
-        source, source_params = load_learner_params(config.init_from)
-        train_config = dataclasses.replace(train_config, network=source.network).validate()
-    run_dir = Path(config.run_dir)
-    checkpointer = Checkpointer(run_dir / "checkpoints", max_to_keep=3)
+    layout = RunLayout.of(config.run_dir)
+    checkpointer = Checkpointer(layout.checkpoints, max_to_keep=3)
     try:
-        latest = latest_resumable_step(checkpointer, resume, "--resume", "--run-dir")
-        if latest is not None:
-            if config.init_from is None:
-                # This command has no network flags: a resumed run keeps the networks it was
-                # saved with (a run started with --init-from took its source's).
-                train_config = _with_saved_network(checkpointer, train_config)
-            # The networks, PPO and game sizes must be the checkpoint's (a list of differences,
-            # not a shape error from the restore).
-            check_resumable(checkpointer, train_config)
-        trainer = make_trainer(train_config)
-        start = source_params if latest is None else None
-        state: TrainState = trainer.init(jax.random.key(config.seed), start)
-        if latest is not None:
-            state, _, _ = checkpointer.restore(state)
+        learner, state, resumed = _open_robocup_run(config, checkpointer, resume)
     except BaseException:
         # Closed here, as train() does, not left to the garbage collector.
         checkpointer.close()
         raise
-    run_dir.mkdir(parents=True, exist_ok=True)
-    (run_dir / "config.json").write_text(train_config.to_json(), encoding="utf-8")
-    (run_dir / "robocup_config.json").write_text(
+    layout.root.mkdir(parents=True, exist_ok=True)
+    layout.config.write_text(learner.config.to_json(), encoding="utf-8")
+    layout.robocup_config.write_text(
         json.dumps(dataclasses.asdict(config), indent=2), encoding="utf-8"
     )
-    learn = jax.jit(trainer.learn)
-    act = make_actor(trainer.policy)
+    improve = jax.jit(learner.improve)
+    act = make_actor(learner.policy)
+    opponent_act = make_actor(learner.policy, per_game=learner.opponent.per_game)
     factory = env_factory or _default_env_factory(config)
-    logger = RunLogger(run_dir, resumed_at=int(state.iteration) if latest is not None else None)
-    episodes_path = run_dir / EPISODES_CSV
-    new_file = not episodes_path.exists()
-    episodes_file = episodes_path.open("a", newline="", encoding="utf-8")
+    logger = RunLogger(layout.root, resumed_at=int(state.iteration) if resumed else None)
+    new_file = not layout.episodes_csv.exists()
+    episodes_file = layout.episodes_csv.open("a", newline="", encoding="utf-8")
     episodes_csv = csv.writer(episodes_file)
     if new_file:
         episodes_csv.writerow(EPISODE_FIELDS)
     deadline = None if config.minutes is None else began + 60.0 * config.minutes
-    iteration = int(state.iteration)
-    start_iteration = iteration
-    last_saved = iteration if latest is not None else None
+    iteration = start_iteration = int(state.iteration)
+    last_saved = iteration if resumed else None
     envs: list[Any] = []
     pool = ThreadPoolExecutor(config.servers) if config.threads and config.servers > 1 else None
     interrupted = False
     episodes = restarts = 0
-    opponent_config = train_config.opponent
-    env_config = train_config.env
+    steps = config.servers * config.episode_length
 
-    def save(current: TrainState) -> Path:
+    def save(current: Any) -> Path:
         nonlocal last_saved
         it = int(current.iteration)
         if last_saved == it:
             return checkpointer.step_directory(it)
         last_saved = it
         return checkpointer.save(
-            it, current, train_config.to_dict(),
-            {"iteration": it, "env_steps": it * config.servers * config.episode_length,
-             "robocup": True},
+            it, current, learner.config.to_dict(),
+            {"iteration": it, "env_steps": it * steps, "robocup": True},
         )
 
     checkpoint: Path | None = None
@@ -466,44 +442,26 @@ def train_robocup(
             if deadline is not None and time.perf_counter() >= deadline:
                 break
             iteration_began = time.perf_counter()
-            key, rollout_key, shuffle_key = jax.random.split(state.key, 3)
-            polyak = state.opponent.polyak
-            assert polyak is not None
+            key, rollout_key, shuffle_key, opponent_key = jax.random.split(state.key, 4)
             data, logs = play_iteration(
-                envs, act, trainer.policy, state.params.policy, polyak.params, rollout_key,
+                envs, act, learner.policy, state.params.policy,
+                learner.opponent.act_params(state.opponent), rollout_key,
                 episode_length=config.episode_length,
                 shaping_active=bool(state.shaping.active),
                 seed=config.seed * 1_000_003 + iteration * config.servers,
                 pool=pool,
                 external_opponent=config.opponent_cmd is not None,
+                opponent_act=opponent_act,
             )
             played = time.perf_counter()
-            learned = learn(state.params, state.opt_state, data, shuffle_key)
-            result = learned.update
-            outcomes = opp.game_outcome(data.goals_for, data.goals_against)
-            polyak = opp.single_opponent_step(
-                polyak, config.opponent, result.params.policy, jnp.mean(outcomes),
-                opponent_config.polyak_tau, opponent_config.freeze_threshold,
-            )
-            shaping_before = shaping = state.shaping
-            if env_config.shaping_schedule:
-                shaping = shaping_update(
-                    shaping, data.goals_for >= 1, env_config.shaping_threshold
-                )
-            if bool(state.shaping.active) and not bool(shaping.active):
-                log.info("shaping switched off after iteration %d", iteration + 1)
-                print_fn(f"robocup train: reward shaping switched off at iteration {iteration + 1}")
-            state = TrainState(
-                params=result.params,
-                opt_state=result.opt_state,
-                opponent=state.opponent.replace(polyak=polyak),
-                shaping=shaping,
-                key=key,
-                iteration=state.iteration + 1,
-                env_steps=state.env_steps
-                + jnp.asarray(config.servers * config.episode_length, jnp.uint32),
+            shaping_was_active = bool(state.shaping.active)
+            state, learner_metrics = improve(
+                state.replace(key=key), data, shuffle_key, opponent_key
             )
             iteration += 1
+            if shaping_was_active and not bool(state.shaping.active):
+                log.info("shaping switched off after iteration %d", iteration)
+                print_fn(f"robocup train: reward shaping switched off at iteration {iteration}")
             now = time.perf_counter()
             for g, game in enumerate(logs):
                 episodes_csv.writerow(
@@ -515,14 +473,8 @@ def train_robocup(
                 restarts += game.restarts
             episodes += len(logs)
             episodes_file.flush()
-            steps = config.servers * config.episode_length
-            # The simulator trainer's metrics, then what only this loop knows.
-            metrics = {
-                name: float(value)
-                for name, value in trainer.metrics(
-                    data, learned, state.opponent, shaping_before, shaping
-                ).items()
-            }
+            # The simulator learner's metrics, then what only this loop knows.
+            metrics = {name: float(value) for name, value in learner_metrics.items()}
             metrics |= {
                 "robocup/restarts": float(sum(game.restarts for game in logs)),
                 "robocup/missed": float(sum(game.missed for game in logs)),
@@ -544,7 +496,7 @@ def train_robocup(
         interrupted = True
         print_fn("robocup train: interrupted, writing a checkpoint")
     finally:
-        if iteration > start_iteration or latest is None:
+        if iteration > start_iteration or not resumed:
             checkpoint = save(state)
         checkpointer.close()
         logger.close()
@@ -555,11 +507,41 @@ def train_robocup(
             env.close()
     return RoboCupTrainResult(
         iterations=iteration,
-        env_steps=iteration * config.servers * config.episode_length,
+        env_steps=iteration * steps,
         episodes=episodes,
         restarts=restarts,
         wall_s=time.perf_counter() - began,
         interrupted=interrupted,
         checkpoint=checkpoint,
-        run_dir=run_dir,
+        run_dir=layout.root,
     )
+
+
+def _open_robocup_run(
+    config: RoboCupTrainConfig, checkpointer: Any, resume: bool
+) -> tuple[Any, Any, bool]:
+    """(learner, state, resumed): refuse another run's checkpoints or a mismatched resume
+    before anything compiles, then build the learner and restore."""
+    from elevens.runs.resume import check_resumable, latest_resumable_step, load_learner_params
+    from elevens.train.learner import make_learner
+
+    train_config = config.train_config()
+    source_params = None
+    if config.init_from is not None:
+        # The source's networks (their sizes and switches) carry over; PPO and the rest are ours.
+        source, source_params = load_learner_params(config.init_from)
+        train_config = dataclasses.replace(train_config, network=source.network).validate()
+    latest = latest_resumable_step(checkpointer, resume, "--resume", "--run-dir")
+    if latest is not None:
+        if config.init_from is None:
+            # This command has no network flags: a resumed run keeps the networks it was
+            # saved with (a run started with --init-from took its source's).
+            train_config = _with_saved_network(checkpointer, train_config)
+        # The networks, PPO and game sizes must be the checkpoint's (a list of differences,
+        # not a shape error from the restore).
+        check_resumable(checkpointer, train_config)
+    learner = make_learner(train_config)
+    state = learner.init(jax.random.key(config.seed), source_params if latest is None else None)
+    if latest is not None:
+        state, _, _ = checkpointer.restore(state)
+    return learner, state, latest is not None

@@ -7,6 +7,7 @@ actions. Batch games with ``jax.vmap``. Carries hold recurrent memory (an LSTM's
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any, Protocol, runtime_checkable
 
 import jax
@@ -35,3 +36,33 @@ class TeamPolicy(Protocol):
     ) -> tuple[Carry, jax.Array]:
         """obs: one team's Observation, leading axis [n] -> (carry, actions f32[n, 2])."""
         ...
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Team:
+    """A team ready to play: a TeamPolicy, its params and a label."""
+
+    name: str
+    """Label for tables and plots."""
+    policy: TeamPolicy
+    """Hashable (it is static to the compiled match)."""
+    params: Any = None
+    """The policy's params (None for the handcrafted teams)."""
+    trained_players: int | None = None
+    """Players per team the checkpoint trained with (None for handcrafted teams)."""
+    size_dependent: bool = False
+    """True if the params only fit a team of ``trained_players`` (the feedforward ablation)."""
+    spec: str = ""
+    """The spec it was loaded from."""
+    field: tuple[float, float, float] | None = None
+    """(field_length, field_width, goal_width) the checkpoint trained on; None for the
+    handcrafted teams, which play on any field they are told."""
+
+    def check_size(self, players_per_team: int) -> None:
+        """Raise ``ValueError`` if the params cannot play ``players_per_team`` a side."""
+        if self.size_dependent and self.trained_players != players_per_team:
+            raise ValueError(
+                f"team {self.name!r} ({self.spec}) is a feedforward network (no attention) "
+                f"trained with {self.trained_players} players a side; its first layer only fits "
+                f"that team size, so it cannot play {players_per_team} a side"
+            )

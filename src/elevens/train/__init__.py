@@ -1,7 +1,8 @@
-"""Training: config, rollout, PPO, opponents, shaping, checkpoints, logs and the trainer.
+"""Training: config, rollout, PPO, opponents, shaping, checkpoints and the compiled learner.
 
-The config is imported eagerly; the trainer and rollout (which pull in the networks) load on
-first use, so ``from elevens.train import make_config`` stays light for the CLI.
+The config is imported eagerly; the learner and rollout (which pull in the networks) load on
+first use, so ``from elevens.train import make_config`` stays light for the CLI. The host loop
+that drives the learner is ``elevens.runs.train``.
 """
 
 from __future__ import annotations
@@ -19,12 +20,9 @@ from elevens.train.config import (
 )
 
 _LAZY = {
-    "Trainer": "elevens.train.trainer",
-    "TrainState": "elevens.train.trainer",
-    "TrainResult": "elevens.train.trainer",
-    "make_trainer": "elevens.train.trainer",
-    "train": "elevens.train.trainer",
-    "evaluate": "elevens.train.trainer",
+    "Learner": "elevens.train.learner",
+    "TrainState": "elevens.train.learner",
+    "make_learner": "elevens.train.learner",
     "Transition": "elevens.train.rollout",
     "Rollout": "elevens.train.rollout",
     "rollout": "elevens.train.rollout",

@@ -362,24 +362,13 @@ def _quickstart() -> TrainConfig:
 
 def _two_v_two() -> TrainConfig:
     # The thesis' 4-player setting (random spawns, 400-step episodes, its networks, clip 0.1,
-    # 5 epochs, entropy 0.01, Polyak opponent with the freeze rule), with the update tuned for
-    # wall-clock on one machine rather than the thesis' day-long runs: 64 games per iteration
-    # (128 sequences in minibatches of 16: 8 Adam steps per epoch), Adam 5e-4, GAE(0.95) with
-    # gamma 0.99 and standardised advantages (lower variance than 400-step Monte Carlo returns),
-    # and a Polyak rate of 0.05 per iteration so the opponent trails by tens of iterations,
-    # not hundreds. The shaping stays on: against a self-play opponent the learner passes the
-    # schedule's 75% scoring rate within about 20 iterations, long before it can hold its own
-    # against the naive team, and runs with shaping kept on beat naive sooner (measured: 0.065 v
-    # 0.025 after 60-70 iterations, goals against 2.7 v 3.8). Entropy weight 1e-3, a tenth of
-    # table 6.1's: against standardised advantages 0.01 keeps widening the Gaussian (its entropy
-    # rose 2.6 -> 4.6 in an hour, the actions saturated at +-1, and the outcome against naive
-    # fell from 0.62 at 30 min to 0.41), while 1e-3 narrows it (1.8 -> 0.8), reached 0.6 at
-    # 24 min and 0.73 over 500 games at 45 (docs/results/2v2_learning.md; 0.003 peaked at 0.62
-    # at 23 min and stayed at 0.47 to 0.57). Table 6.1 and section 4.2 exactly:
-    # --env.shaping-schedule --ppo.learning-rate 1e-4 --ppo.advantage-estimator monte_carlo
-    # --ppo.gamma 0.999 --ppo.no-normalize-advantages --ppo.batch-size 660
-    # --ppo.minibatch-size 60 --run.games-per-iteration 330 --opponent.polyak-tau 0.01
-    # --ppo.entropy-weight 0.01.
+    # 5 epochs, Polyak opponent with the freeze rule), with the update tuned for wall-clock on
+    # one machine rather than the thesis' day-long runs: 64 games an iteration in minibatches of
+    # 8 games, Adam 5e-4, GAE(0.95) with standardised advantages, a Polyak rate of 0.05 (the
+    # opponent trails by tens of iterations, not hundreds), shaping kept on, and an entropy
+    # weight of 1e-3 (against standardised advantages table 6.1's 0.01 widens the Gaussian
+    # until the actions saturate). The measurements behind each choice, and table 6.1's exact
+    # flags, are in docs/results/2v2_learning.md.
     return TrainConfig(
         preset="2v2",
         env=EnvConfig(

@@ -15,7 +15,8 @@ opponent's.
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+import dataclasses
+from typing import Any, NamedTuple, Protocol
 
 import jax
 import jax.numpy as jnp
@@ -430,3 +431,165 @@ def league_maybe_add(
         lambda s: s,
         state,
     )
+
+
+# --------------------------------------------------------------------------------------------
+# The training opponent as one strategy per kind (what the learner sees of it)
+# --------------------------------------------------------------------------------------------
+
+
+class OpponentState(struct.PyTreeNode):
+    """The training opponent's state, the same tree for every kind (checkpoints keep their
+    layout): ``polyak`` holds the one opponent of 'polyak' and 'self', ``league`` the snapshots of
+    'league'; the other is None."""
+
+    polyak: PolyakState | None
+    """'polyak' and 'self': the opponent's policy params (for 'self', the latest learner's)."""
+    league: LeagueState | None
+    """'league': past snapshots of the learner's policy and their results."""
+    indices: jax.Array
+    """i32[G]: the league snapshot each game of the next iteration is played against (0s
+    otherwise)."""
+
+
+class OpponentStrategy(Protocol):
+    """One kind of training opponent. The learner calls ``init`` once, ``act_params`` before
+    each rollout, ``update`` after each PPO update (with the learner's outcomes in its self-play
+    games) and ``metrics`` for the iteration's log."""
+
+    @property
+    def per_game(self) -> bool:
+        """True: ``act_params`` has a leading [games] axis (one opponent per game)."""
+        ...
+
+    def init(self, policy_params: Params) -> OpponentState: ...
+
+    def act_params(self, state: OpponentState) -> Params: ...
+
+    def update(
+        self, state: OpponentState, policy_params: Params, outcomes: jax.Array,
+        iteration: jax.Array, key: jax.Array,
+    ) -> OpponentState: ...
+
+    def metrics(self, state: OpponentState) -> dict[str, jax.Array]: ...
+
+
+@dataclasses.dataclass(frozen=True)
+class PolyakOpponent:
+    """Section 5.2.6: a Polyak average of the learner that waits while the learner struggles."""
+
+    tau: float = POLYAK_TAU
+    threshold: float = POLYAK_THRESHOLD
+    index_count: int = 1
+    """Length of ``OpponentState.indices`` (unused by this kind, kept for the shared tree)."""
+    per_game: bool = False
+
+    def init(self, policy_params: Params) -> OpponentState:
+        return OpponentState(
+            polyak=polyak_init(policy_params), league=None,
+            indices=jnp.zeros((self.index_count,), jnp.int32),
+        )
+
+    def act_params(self, state: OpponentState) -> Params:
+        assert state.polyak is not None
+        return state.polyak.params
+
+    def update(
+        self, state: OpponentState, policy_params: Params, outcomes: jax.Array,
+        iteration: jax.Array, key: jax.Array,
+    ) -> OpponentState:
+        assert state.polyak is not None
+        if outcomes.shape[0] == 0:  # no self-play game this iteration: nothing to go on
+            return state
+        return state.replace(polyak=self.step(state.polyak, policy_params, jnp.mean(outcomes)))
+
+    def step(
+        self, polyak: PolyakState, policy_params: Params, mean_outcome: jax.Array
+    ) -> PolyakState:
+        """Algorithm 4 lines 25-27: move towards the learner unless it is struggling."""
+        return polyak_step(polyak, policy_params, mean_outcome, self.tau, self.threshold)
+
+    def metrics(self, state: OpponentState) -> dict[str, jax.Array]:
+        assert state.polyak is not None
+        return {
+            "opponent/frozen": state.polyak.frozen.astype(jnp.float32),
+            "opponent/updates": state.polyak.num_updates.astype(jnp.float32),
+        }
+
+
+@dataclasses.dataclass(frozen=True)
+class SelfPlayOpponent(PolyakOpponent):
+    """Plain self-play (the ablation): the opponent is the latest learner, never frozen."""
+
+    def step(
+        self, polyak: PolyakState, policy_params: Params, mean_outcome: jax.Array
+    ) -> PolyakState:
+        return single_opponent_step(polyak, "self", policy_params, mean_outcome)
+
+
+@dataclasses.dataclass(frozen=True)
+class LeagueOpponent:
+    """Section 5.2.7: past snapshots of the learner, each game's drawn by its win rate."""
+
+    capacity: int = 32
+    window: int = LEAGUE_WINDOW
+    every: int = LEAGUE_EVERY
+    psi: float = LEAGUE_PSI
+    min_games: int = LEAGUE_MIN_GAMES
+    index_count: int = 1
+    """Games per iteration that draw a snapshot (the self-play games)."""
+    per_game: bool = True
+
+    def init(self, policy_params: Params) -> OpponentState:
+        return OpponentState(
+            polyak=None, league=league_init(policy_params, self.capacity, self.window),
+            indices=jnp.zeros((self.index_count,), jnp.int32),
+        )
+
+    def act_params(self, state: OpponentState) -> Params:
+        assert state.league is not None
+        return league_params(state.league, state.indices)
+
+    def update(
+        self, state: OpponentState, policy_params: Params, outcomes: jax.Array,
+        iteration: jax.Array, key: jax.Array,
+    ) -> OpponentState:
+        assert state.league is not None
+        league = league_record(state.league, state.indices, 1.0 - outcomes)
+        league = league_maybe_add(league, policy_params, iteration + 1, self.every, self.min_games)
+        indices = league_sample(league, key, outcomes.shape[0], self.psi, self.min_games)
+        return state.replace(league=league, indices=indices)
+
+    def metrics(self, state: OpponentState) -> dict[str, jax.Array]:
+        assert state.league is not None
+        league = state.league
+        live = league_live(league)
+        rates = league_win_rates(league, self.min_games)
+        return {
+            "opponent/league_size": league.size.astype(jnp.float32),
+            "opponent/league_mean_win_rate": jnp.sum(jnp.where(live, rates, 0.0))
+            / jnp.maximum(league.size, 1).astype(jnp.float32),
+            "opponent/league_max_win_rate": jnp.max(jnp.where(live, rates, 0.0)),
+        }
+
+
+OPPONENT_KINDS = ("polyak", "self", "league")
+
+
+def make_opponent(
+    kind: str, *, polyak_tau: float = POLYAK_TAU, freeze_threshold: float = POLYAK_THRESHOLD,
+    league_capacity: int = 32, league_window: int = LEAGUE_WINDOW,
+    league_every: int = LEAGUE_EVERY, league_psi: float = LEAGUE_PSI,
+    league_min_games: int = LEAGUE_MIN_GAMES, index_count: int = 1,
+) -> OpponentStrategy:
+    """The strategy of ``kind`` (one of ``OPPONENT_KINDS``)."""
+    if kind == "polyak":
+        return PolyakOpponent(polyak_tau, freeze_threshold, index_count)
+    if kind == "self":
+        return SelfPlayOpponent(index_count=index_count)
+    if kind == "league":
+        return LeagueOpponent(
+            league_capacity, league_window, league_every, league_psi, league_min_games,
+            index_count,
+        )
+    raise ValueError(f"opponent kind={kind!r} is unknown: allowed are {', '.join(OPPONENT_KINDS)}")

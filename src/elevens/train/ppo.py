@@ -26,7 +26,13 @@ from typing import Any, Literal, NamedTuple
 import jax
 import jax.numpy as jnp
 import optax
+from flax import struct
 from jax.typing import ArrayLike
+
+from elevens.env.state import GlobalState, Observation
+from elevens.nets.attention import Capacity
+from elevens.nets.critic import AttentionCritic
+from elevens.nets.policy import AttentionPolicy, PolicyCarry
 
 PyTree = Any
 Metrics = Any
@@ -445,6 +451,71 @@ def ppo_loss(
         clip_fraction=policy.clip_fraction,
         advantage_mean=advantage_mean,
     )
+
+
+class UpdateBatch(struct.PyTreeNode):
+    """The PPO update's data, grouped by game: leading [G, n, T] per player sequence (G games of
+    n learner players), [G, T] per game. A minibatch is a set of whole games, so the critic,
+    whose input is the same for the n players of a game, runs once per game."""
+
+    obs: Observation  # leading [G, n, T]
+    global_state: GlobalState  # leading [G, T] the learner's critic input
+    pre_tanh: jax.Array  # f32[G, n, T, 2]
+    log_prob: jax.Array  # f32[G, n, T] rollout-time log-probabilities
+    reset: jax.Array  # bool[G, n, T]
+    initial_carry: PolicyCarry  # leaves f32[G, n, lstm_features]
+    returns: jax.Array  # f32[G, n, T] critic targets (Monte Carlo returns or GAE lambda-returns)
+    advantages: jax.Array | None  # f32[G, n, T] GAE advantages; None: A = G - V in the loss
+    old_values: jax.Array | None  # f32[G, n, T] rollout-time values, only for value clipping
+    entropy_noise: jax.Array | None = None  # f32[G, n, T, 2] only for the squashed entropy
+
+
+def sequence_loss(
+    policy: AttentionPolicy,
+    critic: AttentionCritic,
+    hp: PPOHyperparams,
+    params: Any,
+    batch: UpdateBatch,
+    visible_fraction: Capacity | None = None,
+) -> tuple[jax.Array, PPOLoss]:
+    """The PPO loss of a minibatch of g whole games (leading [g, n, T], see ``UpdateBatch``):
+    the policy unrolled over each player's sequence from its recorded memory, the critic once
+    per game and step. ``params`` has ``.policy`` and ``.critic``; ``visible_fraction``: the
+    policy's per-entity layers on the visible slots only (``elevens.nets.capacity``)."""
+    n = batch.pre_tanh.shape[1]
+
+    def sequences(tree: Any) -> Any:  # [g, n, ...] -> [g * n, ...], games outermost
+        return jax.tree.map(lambda x: x.reshape(-1, *x.shape[2:]), tree)
+
+    # The g * n sequences unroll together, batch-major: the encoders run as one [g * n * T]
+    # batch of rows (2-D matmuls), and only the LSTM is scanned over time.
+    unrolled: Any = policy.apply(
+        params.policy,
+        sequences(batch.initial_carry),
+        sequences(batch.obs),
+        sequences(batch.reset),
+        1,
+        visible_fraction,
+        method=AttentionPolicy.unroll,
+    )
+    distribution = unrolled[1].distribution()
+    game_values: Any = critic.apply(params.critic, batch.global_state)
+    values = jnp.repeat(game_values, n, axis=0)
+    loss = ppo_loss(
+        distribution.log_prob(sequences(batch.pre_tanh)),
+        sequences(batch.log_prob),
+        values,
+        sequences(batch.returns),
+        # The thesis' entropy term, the closed-form entropy of the pre-tanh Gaussian (eq.
+        # 3.75), or an estimate of the action's own (hp.entropy_estimator).
+        distribution.gaussian_entropy()
+        if batch.entropy_noise is None
+        else distribution.entropy_at(sequences(batch.entropy_noise)),
+        advantages=None if batch.advantages is None else sequences(batch.advantages),
+        old_values=None if batch.old_values is None else sequences(batch.old_values),
+        hyperparams=hp,
+    )
+    return loss.total, loss
 
 
 def explained_variance(

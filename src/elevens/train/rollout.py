@@ -21,6 +21,7 @@ sequences, games outermost (unit ``g * n + k`` is player ``k`` of game ``g``).
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Callable
 from typing import Any
 
@@ -112,10 +113,13 @@ class _StepRecord(struct.PyTreeNode):
     approach_shaping: jax.Array  # f32[G, n]
 
 
-def learner_sides(num_games: int) -> np.ndarray:
-    """i32[G]: side 0 for the first ceil(G / 2) games, side 1 for the rest."""
+def learner_sides(num_games: int, swap_sides: bool = True) -> np.ndarray:
+    """i32[G]: side 0 for the first ceil(G / 2) games and side 1 for the rest (side 0 for all
+    without ``swap_sides``). Training rollouts, evaluation matches and the server's games all
+    split their sides this way."""
     sides = np.zeros(num_games, np.int32)
-    sides[(num_games + 1) // 2 :] = 1
+    if swap_sides:
+        sides[(num_games + 1) // 2 :] = 1
     return sides
 
 
@@ -187,7 +191,6 @@ def rollout(
     with ``env``, ``policy``, ``num_games`` and ``opponent_per_game`` static.
     """
     n = env.players_per_team
-    steps = num_steps
     self_games = num_games - sum(opponent.games for opponent in fixed_opponents)
     blocks = (self_games, *(opponent.games for opponent in fixed_opponents))
     side = jnp.asarray(np.concatenate([learner_sides(games) for games in blocks]))
@@ -195,20 +198,13 @@ def rollout(
     states, _ = jax.vmap(env.reset, in_axes=(0, None))(
         constrain_games(jax.random.split(reset_key, num_games)), params
     )
-    observe = jax.vmap(env.observe, in_axes=(0, None))
-    global_state = jax.vmap(env.global_state, in_axes=(0, None))
-    transition = jax.vmap(env.transition, in_axes=(0, 0, 0, None))
-
-    def learner_forward(carry: PolicyCarry, obs: Observation, reset: jax.Array) -> Any:
-        return policy.apply(learner_params, carry, obs, reset)
-
-    def opponent_forward(carry: PolicyCarry, obs: Observation, reset: jax.Array) -> Any:
-        if opponent_per_game:
-            return jax.vmap(policy.apply)(opponent_params, carry, obs, reset)
-        return policy.apply(opponent_params, carry, obs, reset)
-
     if opponent_per_game:
         opponent_params = constrain_games(opponent_params)
+    game = _Game(
+        env=env, policy=policy, params=params, learner_params=learner_params,
+        opponent_params=opponent_params, opponent_per_game=opponent_per_game, side=side,
+        self_games=self_games, fixed_opponents=fixed_opponents, constrain_games=constrain_games,
+    )
     initial_carry = policy.initial_carry((num_games, n))
     fixed_carries = tuple(
         jax.tree.map(
@@ -225,82 +221,127 @@ def rollout(
             fixed_carries=fixed_carries,
         )
     )
-
-    def opponent_actions(
-        carry: RolloutCarry, obs: Observation, reset: jax.Array, key: jax.Array
-    ) -> tuple[PolicyCarry, tuple[Any, ...], jax.Array]:
-        """Every game's opponent: self-play in the first G_self games, then each fixed team
-        on its block. -> (self-play memory, fixed memories, actions f32[G, n, 2])."""
-        if not fixed_opponents:
-            opponent_carry, out = opponent_forward(carry.opponent_carry, obs, reset)
-            return opponent_carry, (), out.distribution().sample(key).action
-        actions = []
-        opponent_carry = carry.opponent_carry
-        if self_games:
-            opponent_carry, out = opponent_forward(
-                carry.opponent_carry,
-                jax.tree.map(lambda x: x[:self_games], obs),
-                reset[:self_games],
-            )
-            actions.append(out.distribution().sample(key).action)
-        fixed = []
-        begin = self_games
-        for index, opponent in enumerate(fixed_opponents):
-            end = begin + opponent.games
-            keys = jax.random.split(jax.random.fold_in(key, index + 1), opponent.games)
-            memory, action = jax.vmap(opponent.policy.act, in_axes=(None, 0, 0, 0))(
-                opponent.params, carry.fixed_carries[index],
-                jax.tree.map(lambda x, b=begin, e=end: x[b:e], obs), keys,
-            )
-            fixed.append(memory)
-            actions.append(action)
-            begin = end
-        return opponent_carry, tuple(fixed), jnp.concatenate(actions, axis=0)
-
-    def step(carry: RolloutCarry, step_keys: jax.Array) -> tuple[RolloutCarry, _StepRecord]:
-        learner_key, opponent_key, env_keys = step_keys[0], step_keys[1], step_keys[2:]
-        # Observe the carried state (materialised), see the module docstring.
-        obs = observe(carry.state, params)  # leading [G, 2, n]
-        learner_obs = _pick_side(obs, side)  # leading [G, n]
-        opponent_obs = _pick_side(obs, 1 - side)
-        game_reset = carry.state.step == 0  # bool[G]: an episode starts here
-        player_reset = jnp.broadcast_to(game_reset[:, None], (num_games, n))
-
-        learner_carry, learner_out = learner_forward(carry.learner_carry, learner_obs, player_reset)
-        learner_sample = learner_out.distribution().sample(learner_key)
-        log_prob = learner_out.distribution().log_prob(learner_sample.pre_tanh)
-        opponent_carry, fixed_carries, opponent_action = opponent_actions(
-            carry, opponent_obs, player_reset, opponent_key
-        )
-
-        actions = _place_sides(learner_sample.action, opponent_action, side)  # [G, 2, n, 2]
-        state, rewards, done, info = transition(env_keys, carry.state, actions, params)
-        record = _StepRecord(
-            obs=learner_obs,
-            global_state=_pick_side(global_state(carry.state, params), side),
-            pre_tanh=learner_sample.pre_tanh,
-            log_prob=log_prob,
-            reward=_pick_side(rewards, side),
-            done=done,
-            truncated=info.truncated,
-            reset=game_reset,
-            goal_reward=_pick_side(info.goal_reward, side),
-            ball_shaping=_pick_side(info.ball_shaping, side),
-            approach_shaping=_pick_side(info.approach_shaping, side),
-        )
-        next_carry = RolloutCarry(
-            state=state,
-            learner_carry=learner_carry,
-            opponent_carry=opponent_carry,
-            fixed_carries=fixed_carries,
-        )
-        return constrain_games(next_carry), record
-
     # All keys of the episode in one draw (each threefry call is a loop of its own on CPU):
     # per step the learner's, the opponent's, and one per game for the env's respawns.
-    step_keys = jax.random.split(play_key, (steps, 2 + num_games))
-    final, history = jax.lax.scan(step, start, step_keys)
+    step_keys = jax.random.split(play_key, (num_steps, 2 + num_games))
+    final, history = jax.lax.scan(functools.partial(_step, game), start, step_keys)
+    return _collected(history, final.state, side, initial_carry, n)
 
+
+@dataclasses.dataclass
+class _Game:
+    """What every step of a rollout reads (traced arrays and static settings)."""
+
+    env: Soccer
+    policy: AttentionPolicy
+    params: EnvParams
+    learner_params: Params
+    opponent_params: Params
+    opponent_per_game: bool
+    side: jax.Array  # i32[G] the learner's side in each game
+    self_games: int
+    fixed_opponents: tuple[FixedOpponent, ...]
+    constrain_games: Callable[[Any], Any]
+
+    @property
+    def num_games(self) -> int:
+        return int(self.side.shape[0])
+
+
+def _step(
+    game: _Game, carry: RolloutCarry, step_keys: jax.Array
+) -> tuple[RolloutCarry, _StepRecord]:
+    """One step of every game: both teams act on the carried state, the env moves on."""
+    env, params, side, n = game.env, game.params, game.side, game.env.players_per_team
+    learner_key, opponent_key, env_keys = step_keys[0], step_keys[1], step_keys[2:]
+    # Observe the carried state (materialised), see the module docstring.
+    obs = jax.vmap(env.observe, in_axes=(0, None))(carry.state, params)  # leading [G, 2, n]
+    learner_obs = _pick_side(obs, side)  # leading [G, n]
+    opponent_obs = _pick_side(obs, 1 - side)
+    game_reset = carry.state.step == 0  # bool[G]: an episode starts here
+    player_reset = jnp.broadcast_to(game_reset[:, None], (game.num_games, n))
+
+    learner_step: Any = game.policy.apply(
+        game.learner_params, carry.learner_carry, learner_obs, player_reset
+    )
+    learner_carry, learner_out = learner_step
+    learner_sample = learner_out.distribution().sample(learner_key)
+    log_prob = learner_out.distribution().log_prob(learner_sample.pre_tanh)
+    opponent_carry, fixed_carries, opponent_action = _opponent_actions(
+        game, carry, opponent_obs, player_reset, opponent_key
+    )
+
+    actions = _place_sides(learner_sample.action, opponent_action, side)  # [G, 2, n, 2]
+    transition = jax.vmap(env.transition, in_axes=(0, 0, 0, None))
+    state, rewards, done, info = transition(env_keys, carry.state, actions, params)
+    global_state = jax.vmap(env.global_state, in_axes=(0, None))(carry.state, params)
+    record = _StepRecord(
+        obs=learner_obs,
+        global_state=_pick_side(global_state, side),
+        pre_tanh=learner_sample.pre_tanh,
+        log_prob=log_prob,
+        reward=_pick_side(rewards, side),
+        done=done,
+        truncated=info.truncated,
+        reset=game_reset,
+        goal_reward=_pick_side(info.goal_reward, side),
+        ball_shaping=_pick_side(info.ball_shaping, side),
+        approach_shaping=_pick_side(info.approach_shaping, side),
+    )
+    next_carry = RolloutCarry(
+        state=state,
+        learner_carry=learner_carry,
+        opponent_carry=opponent_carry,
+        fixed_carries=fixed_carries,
+    )
+    return game.constrain_games(next_carry), record
+
+
+def _opponent_forward(game: _Game, carry: PolicyCarry, obs: Observation, reset: jax.Array) -> Any:
+    if game.opponent_per_game:
+        return jax.vmap(game.policy.apply)(game.opponent_params, carry, obs, reset)
+    return game.policy.apply(game.opponent_params, carry, obs, reset)
+
+
+def _opponent_actions(
+    game: _Game, carry: RolloutCarry, obs: Observation, reset: jax.Array, key: jax.Array
+) -> tuple[PolicyCarry, tuple[Any, ...], jax.Array]:
+    """Every game's opponent: self-play in the first G_self games, then each fixed team on its
+    block. -> (self-play memory, fixed memories, actions f32[G, n, 2])."""
+    if not game.fixed_opponents:
+        opponent_carry, out = _opponent_forward(game, carry.opponent_carry, obs, reset)
+        return opponent_carry, (), out.distribution().sample(key).action
+    actions = []
+    opponent_carry = carry.opponent_carry
+    self_games = game.self_games
+    if self_games:
+        opponent_carry, out = _opponent_forward(
+            game,
+            carry.opponent_carry,
+            jax.tree.map(lambda x: x[:self_games], obs),
+            reset[:self_games],
+        )
+        actions.append(out.distribution().sample(key).action)
+    fixed = []
+    begin = self_games
+    for index, opponent in enumerate(game.fixed_opponents):
+        end = begin + opponent.games
+        keys = jax.random.split(jax.random.fold_in(key, index + 1), opponent.games)
+        memory, action = jax.vmap(opponent.policy.act, in_axes=(None, 0, 0, 0))(
+            opponent.params, carry.fixed_carries[index],
+            jax.tree.map(lambda x, b=begin, e=end: x[b:e], obs), keys,
+        )
+        fixed.append(memory)
+        actions.append(action)
+        begin = end
+    return opponent_carry, tuple(fixed), jnp.concatenate(actions, axis=0)
+
+
+def _collected(
+    history: _StepRecord, final: State, side: jax.Array, initial_carry: PolicyCarry, n: int
+) -> Rollout:
+    """The scan's [T, G, ...] records as the learner's Rollout ([U, T] player sequences)."""
+    num_games = side.shape[0]
     per_player = lambda leaf: _to_units(leaf, n)  # noqa: E731
     per_game = lambda leaf: jnp.moveaxis(leaf, 0, 1)  # [T, G, ...] -> [G, T, ...]  # noqa: E731
     game_state = jax.tree.map(per_game, history.global_state)
@@ -318,7 +359,7 @@ def rollout(
             lambda leaf: leaf.reshape(num_games * n, *leaf.shape[2:]), initial_carry
         ),
     )
-    score = final.state.score  # i32[G, 2] by side
+    score = final.score  # i32[G, 2] by side
     goals_for = jnp.where(side == 0, score[:, 0], score[:, 1])
     goals_against = jnp.where(side == 0, score[:, 1], score[:, 0])
     return Rollout(

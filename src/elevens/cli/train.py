@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Annotated, Any, Union
 
 import tyro
 
-from elevens.cli_checks import EXIT_INTERRUPTED, exit_with_error
+from elevens.cli.checks import EXIT_INTERRUPTED, exit_with_error
 from elevens.train.config import PRESETS, TrainConfig, make_config
 
 _PRESET_HELP = {
@@ -74,8 +74,9 @@ class TrainArgs:
 
 def train_command(args: TrainArgs) -> Any:
     """Validate (before anything compiles), train, and print a summary. Returns TrainResult."""
+    from elevens.runs.loop import train
+    from elevens.runs.resume import RunRefusedError
     from elevens.train.checkpoint import CheckpointError
-    from elevens.train.trainer import RunRefusedError, train
 
     try:
         config = args.config.validate()

@@ -1,9 +1,9 @@
 """Learning curves over seeds (thesis figure 6.4) from training runs' ``metrics.csv``.
 
-The trainer (``elevens.train.trainer``) logs, at the iteration of every evaluation,
+The host loop (``elevens.runs.loop``) logs, at the iteration of every evaluation,
 ``eval/<team>/outcome`` (the learner's mean outcome against a handcrafted team) together with
 ``time/hours`` (training wall time) and ``time/env_steps`` (game steps played) at the same step;
-``elevens.train.logging.read_metrics_csv`` reads them back as one curve per name.
+``elevens.runs.logging.read_metrics_csv`` reads them back as one curve per name.
 
 For one or more runs (seeds) this draws the mean outcome against a chosen team over each x axis
 (hours, env steps or iterations), with a band of ± one std over the runs, and a vertical line
@@ -208,21 +208,9 @@ def plot_learning_curves(
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from elevens.train.logging import read_metrics_csv
-
-    if not run_dirs:
-        raise ValueError("no run directory given")
-    names = []
-    curves_per_run = []
+    names, curves_per_run = _read_runs(run_dirs)
     eval_games = [_eval_games(Path(run_dir)) for run_dir in run_dirs]
     z = statistics.NormalDist().inv_cdf(0.5 + confidence / 2.0)
-    for run_dir in run_dirs:
-        path = Path(run_dir)
-        csv_path = path if path.is_file() else path / "metrics.csv"
-        if not csv_path.is_file():
-            raise FileNotFoundError(f"{csv_path} does not exist (is {run_dir} a run directory?)")
-        curves_per_run.append(read_metrics_csv(csv_path))
-        names.append(path.name if path.is_dir() else path.parent.name)
     templated = "{team}" in metric
     main_metric = metric.format(team=against) if templated else metric
     teams = _teams_of(curves_per_run, metric) if templated else []
@@ -232,7 +220,6 @@ def plot_learning_curves(
     )
     firsts: dict[str, dict[str, float | None]] = {}
     interval_teams: set[str] = set()
-    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     final_mean = math.nan
     for axis, alias in zip(axes[0], x_axes, strict=True):
         x_name, label, divisor, unit = x_metric(alias)
@@ -251,32 +238,10 @@ def plot_learning_curves(
             axis.fill_between(main.x / divisor, main.mean - main.std, main.mean + main.std,
                               color="#1f4e9c", alpha=0.2, label="± 1 std over runs")
         axis.axhline(threshold, color="grey", linestyle=":", linewidth=1)
-        firsts[alias] = {}
-        for index, team in enumerate(teams):
-            team_band = band([
-                run_series(curves, metric.format(team=team), x_name, run)
-                for curves, run in zip(curves_per_run, names, strict=True)
-            ])
-            errors = [
-                outcome_stderr_series(curves, team, x_name, games, run)
-                for curves, run, games in zip(curves_per_run, names, eval_games, strict=True)
-            ]
-            stderr = None
-            if metric == DEFAULT_METRIC and all(error is not None for error in errors):
-                # The mean over R runs: its variance is the mean of the runs' variances / R.
-                variances = [dataclasses.replace(e, y=e.y**2) for e in errors if e is not None]
-                pooled = band(variances, points=team_band.x.size)
-                stderr = np.sqrt(np.interp(team_band.x, pooled.x, pooled.mean) / len(errors))
-            if stderr is not None:
-                interval_teams.add(team)
-            crossing = first_above(team_band, threshold, stderr, z)
-            firsts[alias][team] = crossing
-            if crossing is not None:
-                where = f"{crossing / divisor:.3g} {unit}".rstrip()
-                how = "" if stderr is not None else " (mean, no interval)"
-                axis.axvline(crossing / divisor, color=colours[(index + 1) % len(colours)],
-                             linestyle="--", linewidth=1.2,
-                             label=f"first beats {team} at {where}{how}")
+        firsts[alias] = _mark_first_beats(
+            axis, teams, curves_per_run, names, eval_games, metric, x_metric(alias),
+            threshold, z, interval_teams,
+        )
         axis.set_xlabel(label)
         axis.set_ylim(-0.02, 1.02)
         axis.grid(alpha=0.3)
@@ -303,6 +268,63 @@ def plot_learning_curves(
 # --------------------------------------------------------------------------------------------
 
 
+
+def _read_runs(run_dirs: Sequence[str | Path]) -> tuple[list[str], list[dict[str, Any]]]:
+    """(run names, metrics.csv curves) of each run directory (or metrics.csv file)."""
+    from elevens.runs.logging import read_metrics_csv
+
+    if not run_dirs:
+        raise ValueError("no run directory given")
+    names, curves_per_run = [], []
+    for run_dir in run_dirs:
+        path = Path(run_dir)
+        csv_path = path if path.is_file() else path / "metrics.csv"
+        if not csv_path.is_file():
+            raise FileNotFoundError(f"{csv_path} does not exist (is {run_dir} a run directory?)")
+        curves_per_run.append(read_metrics_csv(csv_path))
+        names.append(path.name if path.is_dir() else path.parent.name)
+    return names, curves_per_run
+
+
+def _mark_first_beats(
+    axis: Any, teams: Sequence[str], curves_per_run: list[dict[str, Any]], names: list[str],
+    eval_games: list[int], metric: str, x: tuple[str | None, str, float, str],
+    threshold: float, z: float, interval_teams: set[str],
+) -> dict[str, float | None]:
+    """Where the mean over runs first beats each team (a dashed line on ``axis``): the x of
+    the first point whose interval's lower end is above ``threshold``."""
+    import matplotlib.pyplot as plt
+
+    x_name, _, divisor, unit = x
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    firsts: dict[str, float | None] = {}
+    for index, team in enumerate(teams):
+        team_band = band([
+            run_series(curves, metric.format(team=team), x_name, run)
+            for curves, run in zip(curves_per_run, names, strict=True)
+        ])
+        errors = [
+            outcome_stderr_series(curves, team, x_name, games, run)
+            for curves, run, games in zip(curves_per_run, names, eval_games, strict=True)
+        ]
+        stderr = None
+        if metric == DEFAULT_METRIC and all(error is not None for error in errors):
+            # The mean over R runs: its variance is the mean of the runs' variances / R.
+            variances = [dataclasses.replace(e, y=e.y**2) for e in errors if e is not None]
+            pooled = band(variances, points=team_band.x.size)
+            stderr = np.sqrt(np.interp(team_band.x, pooled.x, pooled.mean) / len(errors))
+        if stderr is not None:
+            interval_teams.add(team)
+        crossing = first_above(team_band, threshold, stderr, z)
+        firsts[team] = crossing
+        if crossing is not None:
+            where = f"{crossing / divisor:.3g} {unit}".rstrip()
+            how = "" if stderr is not None else " (mean, no interval)"
+            axis.axvline(crossing / divisor, color=colours[(index + 1) % len(colours)],
+                         linestyle="--", linewidth=1.2,
+                         label=f"first beats {team} at {where}{how}")
+    return firsts
+
 def parse_run_groups(specs: Sequence[str]) -> list[tuple[str, list[Path]]]:
     """``LABEL=RUN[,RUN...]`` words as (label, run directories); a bare ``RUN`` is labelled by
     its folder name. The runs of one label are seeds of one setting, pooled into its band."""
@@ -325,7 +347,7 @@ def parse_run_groups(specs: Sequence[str]) -> list[tuple[str, list[Path]]]:
 
 
 def _read_run(run_dir: Path) -> dict[str, Any]:
-    from elevens.train.logging import read_metrics_csv
+    from elevens.runs.logging import read_metrics_csv
 
     csv_path = run_dir if run_dir.is_file() else run_dir / "metrics.csv"
     if not csv_path.is_file():

@@ -11,7 +11,7 @@ import sys
 import time
 from dataclasses import asdict, dataclass
 
-from elevens.cli_checks import EXIT_INTERRUPTED, exit_with_error
+from elevens.cli.checks import EXIT_INTERRUPTED, exit_with_error
 from elevens.robocup.server import find_rcssserver
 
 
@@ -69,7 +69,7 @@ class RoboCupTrainArgs:
     iterations: int = 1000
     """Stop after this many iterations."""
     opponent: str = "polyak"
-    """'polyak' (frozen while the learner is not ahead) or 'self'."""
+    """'polyak' (frozen while the learner is not ahead), 'self' or 'league'."""
     opponent_cmd: str | None = None
     """Learn against another team's binaries: its start command with {host}, {port},
     {coach_port} and {team} filled in, e.g. "HELIOS/start.sh -p {port} -P {coach_port} -t
@@ -241,8 +241,8 @@ def play(args: RoboCupPlayArgs) -> None:
 
 def train(args: RoboCupTrainArgs) -> None:
     from elevens.robocup.train import RoboCupTrainConfig, train_robocup
+    from elevens.runs.resume import RunRefusedError
     from elevens.train.checkpoint import CheckpointError
-    from elevens.train.trainer import RunRefusedError
 
     binary = find_rcssserver(args.rcssserver)
     config = RoboCupTrainConfig(

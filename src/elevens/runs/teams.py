@@ -20,6 +20,7 @@ team it trained with; ``check_team_size`` refuses it at another size with a clea
 from __future__ import annotations
 
 import dataclasses
+import functools
 import os
 import re
 from pathlib import Path
@@ -28,13 +29,12 @@ from typing import Any, cast
 import jax
 import jax.numpy as jnp
 
-from elevens.teams.base import TeamPolicy
+from elevens.runs.layout import CHECKPOINT_DIR
+from elevens.teams.base import Team, TeamPolicy
 from elevens.teams.registry import HANDCRAFTED
 from elevens.teams.trained import shipped_team_names
 
 HANDCRAFTED_NAMES: tuple[str, ...] = tuple(HANDCRAFTED)  # one list of names: teams.registry's
-CHECKPOINTS_SUBDIR = "checkpoints"
-"""Where the trainer writes checkpoints inside a run directory (``trainer.CHECKPOINT_DIR``)."""
 NETWORK_TEAM_NAME = "network"
 """The ``NetworkTeam.name`` of every loaded checkpoint. The team is a static argument of the
 compiled match, so equal architectures with equal names share one compile across checkpoints
@@ -59,27 +59,6 @@ class TeamSpec:
     """The checkpoint path as given (run, checkpoint or step directory), or None."""
     iteration: int | None = None
     """The checkpoint's iteration; None: the latest (or the step directory's own)."""
-
-
-@dataclasses.dataclass(frozen=True, eq=False)
-class Team:
-    """A team ready to play: a TeamPolicy, its params and a label."""
-
-    name: str
-    """Label for tables and plots."""
-    policy: TeamPolicy
-    """Hashable (it is static to the compiled match)."""
-    params: Any = None
-    """The policy's params (None for the handcrafted teams)."""
-    trained_players: int | None = None
-    """Players per team the checkpoint trained with (None for handcrafted teams)."""
-    size_dependent: bool = False
-    """True if the params only fit a team of ``trained_players`` (the feedforward ablation)."""
-    spec: str = ""
-    """The spec it was loaded from."""
-    field: tuple[float, float, float] | None = None
-    """(field_length, field_width, goal_width) the checkpoint trained on; None for the
-    handcrafted teams, which play on any field they are told."""
 
 
 def _allowed_names() -> str:
@@ -120,7 +99,7 @@ def parse_team_spec(text: str) -> TeamSpec:
         raise ValueError(f"team spec {original!r} has no checkpoint path before '@'")
     path = Path(path_text)
     if label is None:
-        base = path.parent.name if path.name in (CHECKPOINTS_SUBDIR, "") else path.name
+        base = path.parent.name if path.name in (CHECKPOINT_DIR, "") else path.name
         label = base or path_text
         if iteration is not None:
             label = f"{label}@{iteration}"
@@ -134,8 +113,8 @@ def _checkpoint_directory(path: Path) -> tuple[Path, int | None]:
             f"team spec: {path} does not exist (expected a run directory, its checkpoints/ "
             f"directory or a step directory; or one of {_allowed_names()})"
         )
-    if (path / CHECKPOINTS_SUBDIR).is_dir():
-        return path / CHECKPOINTS_SUBDIR, None
+    if (path / CHECKPOINT_DIR).is_dir():
+        return path / CHECKPOINT_DIR, None
     if path.name.isdigit() and (path / "state").is_dir():
         return path.parent, int(path.name)
     return path, None
@@ -170,13 +149,13 @@ def load_checkpoint_team(
     deterministic: play ``tanh(mean)`` (True) or sample (False); None takes the run's
     ``run.eval_deterministic`` (default False: sampling, as in training and the thesis).
 
-    What the loader expects (``elevens.train.trainer`` / ``checkpoint`` as of this writing):
+    What the loader expects (``elevens.train.learner`` / ``checkpoint`` as of this writing):
 
     * the step's ``config.json`` (``checkpoint.load_config``) is a ``TrainConfig.to_dict()``;
       its ``network`` group builds the policy (``NetworkConfig.policy()``) and ``env.scenario``
       gives the team size it trained with;
     * the saved state is either the trainer's ``TrainState`` (restored against
-      ``jax.eval_shape(make_trainer(config).init, key)``; the policy is ``state.params.policy``),
+      ``train_state_shape(config)``; the policy is ``state.params.policy``),
       or the policy's own variables ``{"params": ...}`` as ``AttentionPolicy.init`` returns them.
 
     Raises FileNotFoundError (no such path or no checkpoint), ``CheckpointError`` (corrupt, or a
@@ -227,9 +206,9 @@ def _open_checkpoint(path: Path, iteration: int | None) -> tuple[Any, int, Any]:
 
 def _train_state_shape(config: Any) -> Any:
     """The abstract TrainState ``config`` builds (shapes only: nothing is computed)."""
-    from elevens.train.trainer import make_trainer
+    from elevens.train.learner import train_state_shape
 
-    return jax.eval_shape(make_trainer(config).init, jax.random.key(0))
+    return train_state_shape(config)
 
 
 def _restore_train_state(checkpointer: Any, step: int, config: Any) -> Any:
@@ -360,7 +339,7 @@ def load_exported_team(directory: Path) -> tuple[Any, Any]:
     networks its config builds; damaged files are a ``ShippedTeamError`` naming the file."""
     from elevens.teams.trained import CONFIG_FILE, ShippedTeamError, check_like, load_networks
     from elevens.train.config import TrainConfig
-    from elevens.train.trainer import LearnerParams
+    from elevens.train.learner import LearnerParams
 
     raw_config, networks = load_networks(directory)
     try:
@@ -385,7 +364,7 @@ def export_team(
     ``config.json`` and, when given, ``MODEL_CARD.md``): what the package ships, and what
     ``load_team`` and ``--run.init-from`` read. Returns (the folder, its TrainConfig)."""
     from elevens.teams.trained import save_networks
-    from elevens.train.trainer import load_learner_params
+    from elevens.runs.resume import load_learner_params
 
     config, params = load_learner_params(spec)
     networks = {"policy": params.policy, "critic": params.critic}
@@ -425,14 +404,24 @@ def fit_to_field(team: Team, params: Any) -> Team:
     return dataclasses.replace(team, policy=resolve_team(name, params))
 
 
+def team_on_field(spec: str, env_params: Any, field: str) -> Team:
+    """The ``Team`` of a team spec, a handcrafted one told the field of ``env_params``; a spec
+    that does not load is a ValueError naming ``field`` (the config field that gave it)."""
+    return fit_to_field(_loaded_team(spec, field), env_params)
+
+
+@functools.lru_cache(maxsize=8)
+def _loaded_team(spec: str, field: str) -> Team:
+    """``load_team(spec)``, once per process: evaluations repeat every few iterations."""
+    try:
+        return load_team(spec)
+    except (ValueError, FileNotFoundError) as error:
+        raise ValueError(f"{field} team {spec!r}: {error}") from error
+
+
 def check_team_size(team: Team, players_per_team: int) -> None:
     """Raise ``ValueError`` if ``team``'s params cannot play ``players_per_team`` a side."""
-    if team.size_dependent and team.trained_players != players_per_team:
-        raise ValueError(
-            f"team {team.name!r} ({team.spec}) is a feedforward network (no attention) trained "
-            f"with {team.trained_players} players a side; its first layer only fits that team "
-            f"size, so it cannot play {players_per_team} a side"
-        )
+    team.check_size(players_per_team)
 
 
 def unique_names(teams: list[Team]) -> list[str]:

@@ -13,9 +13,9 @@ from typing import Annotated
 
 import tyro
 
-from elevens.bench.cli_bench import TrainBenchArgs, bench_train_command
-from elevens.cli_checks import EXIT_BAD_INPUT, EXIT_INTERRUPTED, check_numeric_args, one_line
-from elevens.eval.cli_eval import (
+from elevens.cli.bench import TrainBenchArgs, bench_train_command
+from elevens.cli.checks import EXIT_BAD_INPUT, EXIT_INTERRUPTED, check_numeric_args, one_line
+from elevens.cli.eval import (
     AnalyzeArgs,
     CurvesArgs,
     RenderArgs,
@@ -23,7 +23,7 @@ from elevens.eval.cli_eval import (
     ViewArgs,
     run_eval_command,
 )
-from elevens.robocup.cli_robocup import (
+from elevens.cli.robocup import (
     RoboCupBenchArgs,
     RoboCupMatchArgs,
     RoboCupPlayArgs,
@@ -32,7 +32,7 @@ from elevens.robocup.cli_robocup import (
     RoboCupTrainArgs,
     run_robocup_command,
 )
-from elevens.train.cli_train import TrainArgs, command_flags_first, train_command
+from elevens.cli.train import TrainArgs, command_flags_first, train_command
 
 
 @dataclass(frozen=True)
@@ -111,7 +111,7 @@ def _set_host_devices(count: int) -> None:
 
 def play(args: PlayArgs) -> Path | None:
     """Play a game and write it to ``args.out`` (and ``args.replay``)."""
-    from elevens.eval.play import play_and_render
+    from elevens.runs.play import play_and_render
 
     return play_and_render(
         home=args.home, away=args.away, players=args.players, out=args.out,
@@ -122,7 +122,7 @@ def play(args: PlayArgs) -> Path | None:
 
 def export_team(args: ExportTeamArgs) -> Path:
     """Export ``args.team`` to ``args.out``."""
-    from elevens.eval.teams import export_team as export
+    from elevens.runs.teams import export_team as export
 
     card = None if args.card is None else args.card.read_text(encoding="utf-8")
     folder, config = export(args.team, args.out, card)

@@ -12,7 +12,7 @@ the command functions so ``elevens --help`` stays fast. Examples::
     elevens view replays/*.npz
 
 A team is ``random``, ``naive``, ``teamwork`` or a checkpoint ``PATH[@ITERATION]``, optionally
-labelled ``LABEL=...`` (``elevens.eval.teams``).
+labelled ``LABEL=...`` (``elevens.runs.teams``).
 """
 
 from __future__ import annotations
@@ -155,7 +155,7 @@ def _env(
 def _load_teams(specs: tuple[str, ...], players: int, deterministic: bool | None) -> list[Any]:
     import dataclasses as dc
 
-    from elevens.eval.teams import check_team_size, load_team, unique_names
+    from elevens.runs.teams import check_team_size, load_team, unique_names
 
     teams = [load_team(spec, deterministic=deterministic) for spec in specs]
     for team in teams:
@@ -170,7 +170,7 @@ def _teams_and_env(
 ) -> tuple[list[list[Any]], Any, Any]:
     """Load each group of team specs, and the game on the field the checkpoints trained on
     (SPEC.md's when all are handcrafted), with the handcrafted teams told that field."""
-    from elevens.eval.teams import common_field, fit_to_field
+    from elevens.runs.teams import common_field, fit_to_field
 
     loaded = [_load_teams(group, players, deterministic) for group in groups]
     field = common_field([team for group in loaded for team in group])
@@ -286,12 +286,12 @@ def analyze_command(args: AnalyzeArgs) -> Any:
 
 def curves_command(args: CurvesArgs) -> Any:
     """Draw the learning curves; print where each team is first outperformed."""
-    from elevens.eval.curves import plot_learning_curves
+    from elevens.runs.curves import plot_learning_curves
 
     if not args.runs:
         raise ValueError("no run directories given: e.g. elevens curves runs/a runs/b")
     if any("=" in run for run in args.runs):
-        from elevens.eval.curves import parse_run_groups, plot_run_groups
+        from elevens.runs.curves import parse_run_groups, plot_run_groups
 
         finals = plot_run_groups(
             parse_run_groups(args.runs), args.out, against=args.against, x_axes=args.x,
@@ -342,7 +342,7 @@ COMMANDS: dict[type, Callable[[Any], Any]] = {
     RenderArgs: render_command,
     ViewArgs: view_command,
 }
-"""Args type -> command, for ``elevens.cli.main`` to dispatch with one lookup."""
+"""Args type -> command, for ``elevens.cli.app`` to dispatch with one lookup."""
 
 
 def run_eval_command(args: Any) -> Any:
@@ -361,7 +361,7 @@ EvalCommand = (
 
 
 def main(argv: list[str] | None = None) -> Any:
-    """``python -m elevens.eval.cli_eval SUBCOMMAND ...``: the eval subcommands on their own."""
+    """``python -m elevens.cli.eval SUBCOMMAND ...``: the eval subcommands on their own."""
     argv = list(sys.argv[1:] if argv is None else argv)
     return run_eval_command(tyro.cli(EvalCommand, args=argv, prog="elevens"))
 

@@ -1,0 +1,29 @@
+"""Runs on disk: the run directory's layout, opening and resuming it, the host loop that
+drives the compiled learner (``train``), loading trained teams from runs and shipped folders,
+and reading learning curves back.
+
+Layers: env -> {teams, nets} -> train -> eval -> runs -> {robocup, adapters, bench} -> cli.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+_LAZY = {
+    "train": "elevens.runs.loop",
+    "evaluate": "elevens.runs.loop",
+    "TrainResult": "elevens.runs.loop",
+    "RunRefusedError": "elevens.runs.resume",
+    "RunLayout": "elevens.runs.layout",
+    "load_team": "elevens.runs.teams",
+    "load_learner_params": "elevens.runs.resume",
+}
+
+__all__ = list(_LAZY)
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'elevens.runs' has no attribute {name!r}")

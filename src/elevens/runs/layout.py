@@ -1,0 +1,73 @@
+"""The run directory, in one place: what a training run writes and where.
+
+::
+
+    RUN_DIR/
+      config.json              the run's TrainConfig (rewritten at every start)
+      checkpoints/<iteration>/ Orbax checkpoints (train state, config, metadata), atomic
+      damaged_checkpoints/     damaged checkpoints a resume set aside (never deleted)
+      metrics.csv              every logged metric, long format (elevens.runs.logging)
+      events.log               what happened when (resume, shaping off, time budget, Ctrl-C)
+      events.out.tfevents.*    TensorBoard
+      learning_curve.png       evaluation outcome against each team, by env steps and hours
+      learner_vs_naive.gif     one game of the final learner
+      robocup_config.json      elevens robocup train: its own flags
+      episodes.csv             elevens robocup train: one row per server game
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+CHECKPOINT_DIR = "checkpoints"
+DAMAGED_DIR = "damaged_checkpoints"
+CONFIG_JSON = "config.json"
+METRICS_CSV = "metrics.csv"
+LEARNING_CURVE = "learning_curve.png"
+GIF_NAME = "learner_vs_naive.gif"
+ROBOCUP_CONFIG_JSON = "robocup_config.json"
+EPISODES_CSV = "episodes.csv"
+
+
+@dataclasses.dataclass(frozen=True)
+class RunLayout:
+    """The paths of one run directory (nothing is created by building this)."""
+
+    root: Path
+
+    @classmethod
+    def of(cls, run_dir: str | Path) -> RunLayout:
+        return cls(Path(run_dir))
+
+    @property
+    def checkpoints(self) -> Path:
+        return self.root / CHECKPOINT_DIR
+
+    @property
+    def damaged(self) -> Path:
+        return self.root / DAMAGED_DIR
+
+    @property
+    def config(self) -> Path:
+        return self.root / CONFIG_JSON
+
+    @property
+    def metrics_csv(self) -> Path:
+        return self.root / METRICS_CSV
+
+    @property
+    def learning_curve(self) -> Path:
+        return self.root / LEARNING_CURVE
+
+    @property
+    def gif(self) -> Path:
+        return self.root / GIF_NAME
+
+    @property
+    def robocup_config(self) -> Path:
+        return self.root / ROBOCUP_CONFIG_JSON
+
+    @property
+    def episodes_csv(self) -> Path:
+        return self.root / EPISODES_CSV

@@ -1,0 +1,123 @@
+"""Opening a run directory: refusing another run's checkpoints, resuming, falling back past
+damaged checkpoints, and loading a run's (or a shipped team's) networks to start from.
+
+Everything here reads config.json or the checkpoints' metadata before anything compiles, so a
+refused run costs nothing and touches nothing saved.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+from typing import Any, cast
+
+from elevens.runs.layout import DAMAGED_DIR
+from elevens.train import parallel
+from elevens.train.config import TrainConfig, config_differences
+from elevens.train.learner import LearnerParams
+
+
+class RunRefusedError(ValueError):
+    """A run will not start: the run directory holds another run's checkpoints, or a resume
+    does not match them. Raised before anything compiles, and nothing saved is touched."""
+
+
+def latest_resumable_step(
+    checkpointer: Any, resume: bool, resume_flag: str, run_dir_flag: str
+) -> int | None:
+    """The latest checkpoint's step, or None for an empty directory. Without ``resume`` a
+    directory that holds checkpoints is a ``RunRefusedError`` (a new run must not overwrite
+    another's); the message names the command's own flags."""
+    latest = checkpointer.latest_step()
+    if latest is not None and not resume:
+        raise RunRefusedError(
+            f"{checkpointer.directory} already holds checkpoints (latest: iteration {latest}); "
+            f"pass {resume_flag} to continue that run, or choose another {run_dir_flag}"
+        )
+    return latest
+
+
+def load_learner_params(text: str) -> tuple[TrainConfig, LearnerParams]:
+    """(config, LearnerParams) of a shipped team (``elevens-11v11``) or a training checkpoint:
+    a run, checkpoints or step directory, optionally ``PATH@ITERATION``."""
+    from elevens.runs.teams import load_team_folder, load_train_state, parse_team_spec
+
+    spec = parse_team_spec(text)
+    folder = load_team_folder(spec)
+    if folder is not None:
+        return cast(tuple[TrainConfig, LearnerParams], folder)
+    if spec.path is None:
+        raise RunRefusedError(
+            f"{text!r} is a handcrafted team, not a checkpoint: a run starts only from a "
+            "training checkpoint (a run, checkpoints or step directory, or PATH@ITERATION)"
+        )
+    config, state = load_train_state(spec.path, spec.iteration)
+    return config, state.params
+
+
+def load_start_params(text: str, config: TrainConfig) -> tuple[TrainConfig, LearnerParams]:
+    """``load_learner_params(text)``, refused (``RunRefusedError``, listing the fields) unless
+    its networks are ``config``'s. The team size may differ: the networks read entity slots,
+    so a 2 v 2 team starts an 11 v 11 run (and the other way round)."""
+    source, params = load_learner_params(text)
+    if source.network != config.network:
+        differences = [
+            f"--network.{name.replace('_', '-')} {getattr(source.network, name)!r} "
+            f"(this run: {getattr(config.network, name)!r})"
+            for name in (field.name for field in dataclasses.fields(source.network))
+            if getattr(source.network, name) != getattr(config.network, name)
+        ]
+        raise RunRefusedError(
+            f"run.init_from={text!r} has other networks than this run; pass "
+            + ", ".join(differences)
+        )
+    return source, params
+
+
+def check_resumable(checkpointer: Any, config: TrainConfig, step: int | None = None) -> None:
+    """Raise ``RunRefusedError`` unless the checkpoint's config (``step``, default the latest)
+    matches ``config`` (outside ``RESUMABLE_FIELDS``), listing every difference. Reads only
+    config.json, so it runs before anything compiles (``train`` and ``elevens robocup train``
+    call it on a resume)."""
+    saved_dict = checkpointer.read_config(step)
+    try:
+        saved = TrainConfig.from_dict(saved_dict, fill_missing=True)
+    except (TypeError, ValueError) as error:
+        raise RunRefusedError(
+            f"cannot resume from {checkpointer.directory}: its config.json does not describe a "
+            f"TrainConfig of this version ({error})"
+        ) from error
+    differences = config_differences(saved, config)
+    if differences:
+        raise RunRefusedError(
+            f"cannot resume from {checkpointer.directory}: the config differs from the "
+            "checkpoint's in fields that change what is computed:\n  "
+            + "\n  ".join(differences)
+            + "\nuse the checkpoint's values, or another run directory"
+        )
+
+
+def last_good_step(
+    checkpointer: Any, target: Any, latest: int, damage: Exception, use_it: bool,
+    run_dir: Path,
+) -> int:
+    """The step a resume falls back to when checkpoint ``latest`` is damaged (``damage``):
+    with ``use_it``, the newest intact one, after moving the damaged ones aside; otherwise a
+    ``CheckpointError`` naming the damage and what is intact."""
+    from elevens.train.checkpoint import CheckpointError
+
+    good = checkpointer.last_intact_step(target, before=latest)
+    if good is None:
+        raise CheckpointError(f"{damage}; no earlier checkpoint is intact") from damage
+    if not use_it:
+        raise CheckpointError(
+            f"{damage}; checkpoint {good} ({checkpointer.step_directory(good)}) is intact: "
+            f"pass --resume-from-last-good to continue from it (the damaged ones move to "
+            f"{run_dir / DAMAGED_DIR}, nothing is deleted)"
+        ) from damage
+    if parallel.is_lead():
+        for step in checkpointer.all_steps():
+            if step > good:
+                checkpointer.set_aside(step, run_dir / DAMAGED_DIR)
+    parallel.barrier("elevens: damaged checkpoints set aside")
+    return int(good)

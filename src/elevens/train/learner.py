@@ -1,0 +1,616 @@
+"""The learner: ``make_learner(config)`` gives pure ``init`` and ``update_chunk``.
+
+One iteration (thesis Algorithm 4) compiles into one program, and this file reads in its order:
+
+1. **Collect** (``collect``, ``elevens.train.rollout``): G games, one whole episode each, the
+   learner against the opponent's current params, with the shaping weights in force put into
+   ``EnvParams`` (leaves: no recompile).
+2. **Advantages** (``advantages``): Monte Carlo returns G_t (the thesis' choice; A = G - V is
+   recomputed with the current critic inside every minibatch, Algorithm 4 lines 15-17), or GAE
+   on the rollout-time values (``ppo.advantage_estimator``). The whistle ends the episode for
+   the critic, which sees the time left in its global state, so the last step is a terminal.
+3. **Epochs and minibatches** (``learn``): the rollout's data, grouped by game (``[G, n, T]``:
+   free, games are outermost), shuffled into minibatches of whole games and stepped with one
+   Adam on ``ppo.sequence_loss`` (Algorithm 4 lines 12-24).
+4. **Opponent** (``elevens.train.opponents``): the strategy of ``opponent.kind`` (Polyak with
+   the freeze rule, self-play or league) takes the learner's new policy and its outcomes in the
+   self-play games.
+5. **Shaping** (``elevens.train.shaping``): off for good once the learner scores in more than
+   75% of its recent games.
+
+``improve`` is steps 2 to 5 on a rollout played anywhere: ``elevens robocup train`` plays its
+games in the official server and improves with the same function. ``update_chunk`` runs K
+iterations as a ``lax.scan``; the host loop that drives it is ``elevens.runs``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import re
+from collections.abc import Callable
+from typing import Any, NamedTuple, cast
+
+import jax
+import jax.numpy as jnp
+import optax
+from flax import struct
+from jax.sharding import Mesh
+
+from elevens.env.params import EnvParams
+from elevens.env.soccer import Soccer
+from elevens.env.state import GlobalState, Observation
+from elevens.nets import capacity
+from elevens.nets.critic import AttentionCritic
+from elevens.nets.policy import AttentionPolicy
+from elevens.teams.base import Team
+from elevens.train import opponents as opp
+from elevens.train import parallel, ppo
+from elevens.train.config import (
+    RESUMABLE_FIELDS,
+    RunConfig,
+    TrainConfig,
+    opponent_mix,
+    self_play_games,
+    validate,
+)
+from elevens.train.opponents import OpponentState, OpponentStrategy
+from elevens.train.rollout import FixedOpponent, Rollout, rollout
+from elevens.train.shaping import (
+    ShapingState,
+    shaping_init,
+    shaping_scoring_rate,
+    shaping_update,
+    shaping_weights,
+)
+
+Params = Any
+Metrics = dict[str, jax.Array]
+
+
+class LearnerParams(struct.PyTreeNode):
+    """The learning team's networks: one policy and one critic shared by all its players."""
+
+    policy: Params  # {"params": ...} of AttentionPolicy
+    critic: Params  # {"params": ...} of AttentionCritic
+
+
+class TrainState(struct.PyTreeNode):
+    """Everything a run carries from one iteration to the next (and what a checkpoint holds)."""
+
+    params: LearnerParams
+    opt_state: optax.OptState  # Adam's state for params
+    opponent: OpponentState
+    shaping: ShapingState
+    key: jax.Array  # key[] the run's random stream
+    iteration: jax.Array  # i32[] completed iterations
+    env_steps: jax.Array  # u32[] game steps played (G * T per iteration; wraps after 4.29e9,
+    #                       the host loop keeps the exact count as iteration * G * T)
+
+
+class Learned(NamedTuple):
+    """What ``learn`` returns."""
+
+    update: ppo.UpdateResult  # new params, opt state, mean loss terms
+    values: jax.Array  # f32[U, T] the critic's values at rollout time (before the update)
+    returns: jax.Array  # f32[U, T] the critic's targets
+
+
+@dataclasses.dataclass(frozen=True)
+class Setup:
+    """What the stages of an iteration share: the config's static parts, built once."""
+
+    config: TrainConfig
+    env: Soccer
+    env_params: EnvParams
+    policy: AttentionPolicy
+    critic: AttentionCritic
+    optimizer: optax.GradientTransformation
+    opponent: OpponentStrategy
+    fixed_opponents: tuple[FixedOpponent, ...]
+    """The teams of ``opponent.mix`` that play the last games of every iteration."""
+    self_games: int
+    """The games against ``opponent`` (the first ones); the rest are the fixed teams'."""
+    mesh: Mesh
+    value_and_grad: Callable[[LearnerParams, ppo.UpdateBatch], Any]
+
+    @property
+    def players(self) -> int:
+        return self.env.players_per_team
+
+    @property
+    def games(self) -> int:
+        return self.config.run.games_per_iteration
+
+    def shard_games(self, tree: Any) -> Any:
+        return parallel.game_constraint(self.mesh)(tree)
+
+    def shard_minibatch_games(self, tree: Any) -> Any:
+        return parallel.game_constraint(self.mesh, game_axis=1)(tree)
+
+
+# --------------------------------------------------------------------------------------------
+# One iteration, in execution order
+# --------------------------------------------------------------------------------------------
+
+
+def iteration(setup: Setup, state: TrainState) -> tuple[TrainState, Metrics]:
+    """Algorithm 4 once: collect, then improve on what was collected."""
+    key, rollout_key, shuffle_key, opponent_key = jax.random.split(state.key, 4)
+    data = collect(setup, state, rollout_key)
+    return improve(setup, state.replace(key=key), data, shuffle_key, opponent_key)
+
+
+def collect(setup: Setup, state: TrainState, rollout_key: jax.Array) -> Rollout:
+    """1. Algorithm 4 lines 4-11: one episode of every game, shaping as currently in force."""
+    env_config = setup.config.env
+    weights = shaping_weights(
+        state.shaping, env_config.ball_shaping_weight, env_config.approach_shaping_weight
+    )
+    # The weights are pytree leaves of EnvParams: a new value is not a recompile.
+    shaping: dict[str, Any] = {
+        "ball_shaping_weight": weights.ball,
+        "approach_shaping_weight": weights.approach,
+    }
+    params_now = dataclasses.replace(setup.env_params, **shaping)
+    return rollout(
+        setup.env,
+        setup.policy,
+        params_now,
+        state.params.policy,
+        setup.opponent.act_params(state.opponent),
+        rollout_key,
+        num_games=setup.games,
+        num_steps=env_config.episode_length,
+        opponent_per_game=setup.opponent.per_game,
+        constrain_games=setup.shard_games,
+        fixed_opponents=setup.fixed_opponents,
+    )
+
+
+def improve(
+    setup: Setup, state: TrainState, data: Rollout, shuffle_key: jax.Array,
+    opponent_key: jax.Array,
+) -> tuple[TrainState, Metrics]:
+    """2-5: advantages, the PPO epochs, the opponent and the shaping schedule after a rollout
+    (``state.key`` is the run's key for the next iteration)."""
+    learned = learn(setup, state.params, state.opt_state, data, shuffle_key)
+    new_params = learned.update.params
+    outcomes = opp.game_outcome(data.goals_for, data.goals_against)  # f32[G]
+    # The fixed teams' games (the last ones) tell nothing about the opponent.
+    opponent = setup.opponent.update(
+        state.opponent, new_params.policy, outcomes[: setup.self_games], state.iteration,
+        opponent_key,
+    )
+    shaping = next_shaping(setup, state.shaping, data)
+    steps_played = data.goals_for.shape[0] * data.transitions.reward.shape[1]
+    new_state = TrainState(
+        params=new_params,
+        opt_state=learned.update.opt_state,
+        opponent=opponent,
+        shaping=shaping,
+        key=state.key,
+        iteration=state.iteration + 1,
+        env_steps=state.env_steps + jnp.asarray(steps_played, jnp.uint32),
+    )
+    return new_state, iteration_metrics(setup, data, learned, opponent, state.shaping, shaping)
+
+
+def advantages(
+    hp: ppo.PPOHyperparams, data: Rollout, values: jax.Array
+) -> tuple[jax.Array, jax.Array | None]:
+    """2. (returns, advantages or None), each f32[U, T]; values f32[U, T] at rollout time."""
+    t = data.transitions
+    # The estimators scan over a leading time axis: [U, T] -> [T, U] and back.
+    if hp.advantage_estimator == "gae":
+        result = ppo.gae(
+            t.reward.T, values.T, t.done.T, jnp.zeros_like(t.truncated.T), 0.0,
+            hp.gamma, hp.gae_lambda,
+        )
+        return result.returns.T, result.advantages.T
+    returns = ppo.monte_carlo_returns(t.reward.T, t.done.T, hp.gamma)
+    return returns.T, None
+
+
+def learn(
+    setup: Setup, params: LearnerParams, opt_state: optax.OptState, data: Rollout,
+    shuffle_key: jax.Array,
+) -> Learned:
+    """2-3. Algorithm 4 lines 12-24: advantages, then the PPO epochs over the sequences."""
+    hp, n = setup.config.ppo, setup.players
+    # The critic once per game (its input is the same for the n players of a game).
+    game_values: Any = setup.critic.apply(params.critic, data.game_global_state)  # f32[G, T]
+    values = jnp.repeat(game_values, n, axis=0)  # f32[U, T]
+    returns, gae_advantages = advantages(hp, data, values)
+    entropy_noise = None
+    if hp.entropy_estimator == "squashed":
+        shuffle_key, noise_key = jax.random.split(shuffle_key)
+        pre_tanh = data.transitions.pre_tanh
+        entropy_noise = jax.random.normal(noise_key, pre_tanh.shape, pre_tanh.dtype)
+    batch = update_batch(setup, data, values, returns, gae_advantages, entropy_noise)
+    update = ppo.update_epochs(
+        functools.partial(ppo.sequence_loss, setup.policy, setup.critic, hp),
+        setup.optimizer,
+        params,
+        opt_state,
+        batch,
+        shuffle_key,
+        epochs=hp.epochs,
+        num_minibatches=hp.num_minibatches,
+        value_and_grad_fn=setup.value_and_grad,
+        constrain_minibatches=setup.shard_minibatch_games,
+    )
+    return Learned(update=update, values=values, returns=returns)
+
+
+def update_batch(
+    setup: Setup, data: Rollout, values: jax.Array, returns: jax.Array,
+    gae_advantages: jax.Array | None, entropy_noise: jax.Array | None,
+) -> ppo.UpdateBatch:
+    """The rollout's [U, T] player sequences as [G, n, T] (games outermost: a free reshape)."""
+    t, n = data.transitions, setup.players
+
+    def by_game(tree: Any) -> Any:
+        return jax.tree.map(lambda x: x.reshape(setup.games, n, *x.shape[1:]), tree)
+
+    maybe = lambda x: None if x is None else by_game(x)  # noqa: E731
+    return setup.shard_games(ppo.UpdateBatch(
+        obs=by_game(t.obs),
+        global_state=data.game_global_state,
+        pre_tanh=by_game(t.pre_tanh),
+        log_prob=by_game(t.log_prob),
+        reset=by_game(t.reset),
+        initial_carry=by_game(t.initial_carry),
+        returns=by_game(returns),
+        advantages=maybe(gae_advantages),
+        old_values=by_game(values) if setup.config.ppo.clip_value else None,
+        entropy_noise=maybe(entropy_noise),
+    ))
+
+
+def next_shaping(setup: Setup, shaping: ShapingState, data: Rollout) -> ShapingState:
+    """5. The shaping schedule after this iteration's games."""
+    env_config = setup.config.env
+    if not env_config.shaping_schedule:
+        return shaping
+    return shaping_update(shaping, data.goals_for >= 1, env_config.shaping_threshold)
+
+
+def iteration_metrics(
+    setup: Setup,
+    data: Rollout,
+    learned: Learned,
+    opponent: OpponentState,
+    shaping_before: ShapingState,
+    shaping_after: ShapingState,
+) -> Metrics:
+    """One iteration's ``train/``, ``env/`` and ``opponent/`` metrics from its rollout, its
+    update, the opponent after it and the shaping state in force during (before) and after it."""
+    t = data.transitions
+    loss, values, returns = learned.update.metrics, learned.values, learned.returns
+    outcomes = opp.game_outcome(data.goals_for, data.goals_against)
+    metrics = {
+        "train/loss": loss.total,
+        "train/policy_loss": loss.policy,
+        "train/value_loss": loss.value,
+        "train/entropy": loss.entropy,
+        "train/approx_kl": loss.approx_kl,
+        "train/clip_fraction": loss.clip_fraction,
+        "train/advantage_mean": loss.advantage_mean,
+        "train/grad_norm": learned.update.grad_norm,
+        "train/explained_variance": ppo.explained_variance(values, returns),
+        "train/value_mean": jnp.mean(values),
+        "train/return_mean": jnp.mean(returns[:, 0]),
+        "train/mean_score": jnp.mean(outcomes),
+        "train/win_rate": jnp.mean((outcomes == 1.0).astype(jnp.float32)),
+        "train/goals_for": jnp.mean(data.goals_for.astype(jnp.float32)),
+        "train/goals_against": jnp.mean(data.goals_against.astype(jnp.float32)),
+        "train/episode_reward": jnp.mean(jnp.sum(t.reward, axis=1)),
+        # Share of teammate and opponent slots in view: above the largest capacity of
+        # nets.capacity, the update's policy pass runs dense (slower, same result).
+        "train/visible_share": jnp.mean(t.obs.entity_mask[..., :-1].astype(jnp.float32)),
+        "env/goal_reward": jnp.mean(data.goal_reward),
+        "env/ball_shaping": jnp.mean(data.ball_shaping),
+        "env/approach_shaping": jnp.mean(data.approach_shaping),
+        "env/shaping_active": shaping_before.active.astype(jnp.float32),
+        "env/shaping_switched_off": (shaping_before.active & ~shaping_after.active).astype(
+            jnp.float32
+        ),
+        "env/scoring_rate": shaping_scoring_rate(shaping_after),
+        **setup.opponent.metrics(opponent),
+        **mix_metrics(setup, outcomes),
+    }
+    return {name: jnp.asarray(v, jnp.float32) for name, v in metrics.items()}
+
+
+def mix_metrics(setup: Setup, outcomes: jax.Array) -> Metrics:
+    """With ``opponent.mix``: the learner's mean outcome against each opponent."""
+    if not setup.fixed_opponents:
+        return {}
+    metrics, begin = {}, 0
+    for spec, games in opponent_mix(setup.config):
+        if games:
+            label = metric_label(spec)
+            metrics[f"opponent/{label}/outcome"] = jnp.mean(outcomes[begin : begin + games])
+        begin += games
+    return metrics
+
+
+def metric_label(spec: str) -> str:
+    """A team spec as a metric name's part: 'runs/x@30' -> 'runs_x@30'."""
+    return re.sub(r"[^A-Za-z0-9_.@=-]+", "_", spec).strip("_") or "team"
+
+
+# --------------------------------------------------------------------------------------------
+# Building a learner
+# --------------------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class Learner:
+    """Pure functions of one config. ``init(key, start=None) -> TrainState``;
+    ``update_chunk(state) -> (state, metrics)`` runs K = ``config.run.iterations_per_chunk``
+    iterations (jitted; metrics are ``{name: f32[K]}``); ``update(state, num_iterations)``
+    another number (compiled once per number). ``iteration``, ``collect``, ``learn``,
+    ``improve`` and ``metrics`` are the stages above bound to this config, not jitted."""
+
+    config: TrainConfig
+    setup: Setup
+    init: Callable[..., TrainState]
+    update_chunk: Callable[[TrainState], tuple[TrainState, Metrics]]
+
+    @property
+    def env(self) -> Soccer:
+        return self.setup.env
+
+    @property
+    def env_params(self) -> EnvParams:
+        return self.setup.env_params
+
+    @property
+    def policy(self) -> AttentionPolicy:
+        return self.setup.policy
+
+    @property
+    def critic(self) -> AttentionCritic:
+        return self.setup.critic
+
+    @property
+    def optimizer(self) -> optax.GradientTransformation:
+        return self.setup.optimizer
+
+    @property
+    def mesh(self) -> Mesh:
+        return self.setup.mesh
+
+    @property
+    def opponent(self) -> OpponentStrategy:
+        return self.setup.opponent
+
+    @property
+    def iteration(self) -> Callable[[TrainState], tuple[TrainState, Metrics]]:
+        return functools.partial(iteration, self.setup)
+
+    @property
+    def collect(self) -> Callable[[TrainState, jax.Array], Rollout]:
+        return functools.partial(collect, self.setup)
+
+    @property
+    def learn(self) -> Callable[..., Learned]:
+        return functools.partial(learn, self.setup)
+
+    @property
+    def improve(self) -> Callable[..., tuple[TrainState, Metrics]]:
+        return functools.partial(improve, self.setup)
+
+    @property
+    def metrics(self) -> Callable[..., Metrics]:
+        return functools.partial(iteration_metrics, self.setup)
+
+    def update(self, state: TrainState, num_iterations: int) -> tuple[TrainState, Metrics]:
+        if num_iterations == self.config.run.iterations_per_chunk:
+            return self.update_chunk(state)
+        return _scan_iterations(self.setup, num_iterations)(state)
+
+
+def make_optimizer(config: TrainConfig) -> optax.GradientTransformation:
+    """Adam with the config's learning rate (table 6.1: 1e-4), one optimiser for both networks
+    (Algorithm 4 lines 22-23 step policy and critic on the same objective J)."""
+    return optax.adam(config.ppo.learning_rate)
+
+
+TeamLoader = Callable[[str, EnvParams, str], Team]
+"""``(team spec, env params, config field) -> Team``: how the learner gets the fixed teams of
+``opponent.mix`` (``elevens.runs.teams.team_on_field``: loading runs from disk is the runs
+layer's, above this one)."""
+
+
+def make_learner(config: TrainConfig, load_team: TeamLoader | None = None) -> Learner:
+    """Build the pure functions of ``config`` (validated first: nothing compiles on a bad one).
+    ``load_team`` loads the fixed teams of ``opponent.mix``; a config with such teams needs it.
+
+    They depend only on what is computed, not on the host loop's fields (``RESUMABLE_FIELDS``
+    but K), so they are cached on the rest: building the same run again in one process (a
+    resume, a longer run, another run_dir) reuses the compiled chunk.
+    """
+    validate(config)
+    if load_team is None and len(opponent_mix(config)) > 1:
+        raise ValueError(
+            f"opponent.mix={config.opponent.mix!r} names fixed teams: pass load_team "
+            "(elevens.runs.teams.team_on_field) to make_learner, or train with elevens.runs.train"
+        )
+    core = _build_learner(_computation_config(config), load_team)
+    return dataclasses.replace(core, config=config)
+
+
+def train_state_shape(config: TrainConfig) -> TrainState:
+    """The TrainState of ``config`` as shapes (``jax.eval_shape``), nothing computed or loaded:
+    the target a checkpoint restores into."""
+    setup = make_setup(config.validate())
+    return cast(TrainState, jax.eval_shape(functools.partial(init_state, setup), jax.random.key(0)))
+
+
+def _computation_config(config: TrainConfig) -> TrainConfig:
+    """``config`` with the host-loop fields set to their defaults (K is kept: it is compiled in)."""
+    chunk = config.run.iterations_per_chunk
+    defaults = dataclasses.replace(RunConfig(), iterations_per_chunk=chunk)
+    overrides = {
+        path.split(".", 1)[1]: getattr(defaults, path.split(".", 1)[1])
+        for path in RESUMABLE_FIELDS
+        if path.startswith("run.")
+    }
+    return dataclasses.replace(
+        config, preset="", run=dataclasses.replace(config.run, **overrides)
+    )
+
+
+@functools.lru_cache(maxsize=8)
+def _build_learner(config: TrainConfig, load_team: TeamLoader | None) -> Learner:
+    setup = make_setup(config, load_team)
+    chunk = config.run.iterations_per_chunk
+
+    def update_chunk(state: TrainState) -> tuple[TrainState, Metrics]:
+        return jax.lax.scan(lambda s, _: iteration(setup, s), state, None, length=chunk)
+
+    return Learner(
+        config=config,
+        setup=setup,
+        # Not jitted as a whole: the networks' init is (and is shared, see
+        # _network_initializer); the rest is a few zeros and copies.
+        init=functools.partial(init_state, setup),
+        update_chunk=parallel.jit_replicated(update_chunk, setup.mesh),
+    )
+
+
+def make_setup(config: TrainConfig, load_team: TeamLoader | None = None) -> Setup:
+    """The static parts of an iteration of ``config`` (the fixed teams of ``opponent.mix``
+    only with ``load_team``)."""
+    n = config.env.players_per_team
+    env_params = config.env.env_params()
+    policy, critic = config.network.policy(), config.network.critic()
+    mesh = parallel.data_mesh(config.run.devices)
+    _check_device_split(config, mesh)
+    hp = config.ppo
+    loss = functools.partial(ppo.sequence_loss, policy, critic, hp)
+    return Setup(
+        config=config,
+        env=Soccer(n),
+        env_params=env_params,
+        policy=policy,
+        critic=critic,
+        optimizer=make_optimizer(config),
+        opponent=make_opponent(config),
+        fixed_opponents=_fixed_opponents(config, env_params, load_team) if load_team else (),
+        self_games=self_play_games(config),
+        mesh=mesh,
+        value_and_grad=capacity.value_and_grad(
+            loss,
+            lambda batch: batch.obs,
+            capacity.compacts(config.network.use_attention, n),
+        ),
+    )
+
+
+def make_opponent(config: TrainConfig) -> OpponentStrategy:
+    """The training opponent of ``config.opponent``."""
+    o = config.opponent
+    return opp.make_opponent(
+        o.kind, polyak_tau=o.polyak_tau, freeze_threshold=o.freeze_threshold,
+        league_capacity=o.league_capacity, league_window=o.league_window,
+        league_every=o.league_every, league_psi=o.league_psi,
+        league_min_games=o.league_min_games, index_count=opponent_index_count(config),
+    )
+
+
+def init_state(setup: Setup, key: jax.Array, start: LearnerParams | None = None) -> TrainState:
+    """A fresh TrainState; ``start`` (LearnerParams of the same networks, another run's:
+    --run.init-from) replaces the random networks, and the opponent starts as its policy."""
+    policy_key, critic_key, run_key = jax.random.split(key, 3)
+    if start is None:
+        initialize = _network_initializer(setup.policy, setup.critic, setup.players)
+        policy_params, critic_params = initialize(policy_key, critic_key)
+        start = LearnerParams(policy=policy_params, critic=critic_params)
+    return TrainState(
+        params=start,
+        opt_state=setup.optimizer.init(start),
+        opponent=setup.opponent.init(start.policy),
+        shaping=shaping_init(setup.config.env.shaping_window),
+        key=run_key,
+        iteration=jnp.asarray(0, jnp.int32),
+        env_steps=jnp.asarray(0, jnp.uint32),
+    )
+
+
+@functools.lru_cache(maxsize=8)
+def _network_initializer(
+    policy: AttentionPolicy, critic: AttentionCritic, players_per_team: int
+) -> Callable[[jax.Array, jax.Array], tuple[Params, Params]]:
+    """Jitted ``(policy_key, critic_key) -> (policy params, critic params)``, one per networks
+    and team size: its compile is most of ``init``'s, and a sweep or a test suite builds many
+    configs that differ only in PPO, opponent or run settings. Parameters depend on the input
+    shapes only, so zeros stand in for the observation and the global state."""
+    n = players_per_team
+    env = Soccer(n)
+    env_params = EnvParams(players_per_team=n)
+
+    def inputs(key: jax.Array) -> tuple[Observation, GlobalState]:
+        state, obs = env.reset(key, env_params)
+        return obs.team(0), env.global_state(state, env_params)
+
+    shapes = jax.eval_shape(inputs, jax.random.key(0))
+
+    @jax.jit
+    def initialize(policy_key: jax.Array, critic_key: jax.Array) -> tuple[Params, Params]:
+        team_obs, global_state = jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), shapes)
+        policy_params = policy.init(
+            policy_key, policy.initial_carry((n,)), team_obs, jnp.zeros((n,), bool)
+        )
+        return policy_params, critic.init(critic_key, global_state)
+
+    return initialize
+
+
+@functools.lru_cache(maxsize=16)
+def _scan_iterations(
+    setup: Setup, num_iterations: int
+) -> Callable[[TrainState], tuple[TrainState, Metrics]]:
+    def run(state: TrainState) -> tuple[TrainState, Metrics]:
+        return jax.lax.scan(lambda s, _: iteration(setup, s), state, None, length=num_iterations)
+
+    return parallel.jit_replicated(run, setup.mesh)
+
+
+def _fixed_opponents(
+    config: TrainConfig, env_params: EnvParams, load_team: TeamLoader
+) -> tuple[FixedOpponent, ...]:
+    """The teams of ``opponent.mix`` (not self-play), loaded once per learner."""
+    n = config.env.players_per_team
+    fixed = []
+    for spec, games in opponent_mix(config)[1:]:
+        team = load_team(spec, env_params, "opponent.mix")
+        try:
+            team.check_size(n)
+        except ValueError as error:
+            raise ValueError(f"opponent.mix team {spec!r}: {error}") from error
+        fixed.append(FixedOpponent(policy=team.policy, params=team.params, games=games))
+    return tuple(fixed)
+
+
+def opponent_index_count(config: TrainConfig) -> int:
+    """Length of ``OpponentState.indices``: one per self-play game, and at least one (a
+    checkpoint cannot hold an empty array; without self-play nothing reads it)."""
+    return max(self_play_games(config), 1)
+
+
+def _check_device_split(config: TrainConfig, mesh: Mesh) -> None:
+    """Every device plays an equal share of the games and of each minibatch's games."""
+    n = config.env.players_per_team
+    parallel.check_divisible(
+        "run.games_per_iteration", config.run.games_per_iteration, mesh,
+        "or choose the devices with --run.devices",
+    )
+    games = config.ppo.minibatch_size // n
+    parallel.check_divisible(
+        f"the games of a minibatch (ppo.minibatch_size={config.ppo.minibatch_size} / {n} "
+        "players)", games, mesh, "ppo.minibatch_size counts player sequences",
+    )

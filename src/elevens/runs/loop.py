@@ -345,7 +345,9 @@ class _Run:
         )
         self.evaluate()
 
-    def log_rows(self, before: int, rows: list[dict[str, float]], game: str, seconds: float) -> None:
+    def log_rows(
+        self, before: int, rows: list[dict[str, float]], game: str, seconds: float
+    ) -> None:
         """Every iteration of a chunk, with the chunk's time spread evenly over them."""
         steps_per_iteration = self.configs[game].env_steps_per_iteration
         chunk_sps = len(rows) * steps_per_iteration / max(seconds, 1e-9)

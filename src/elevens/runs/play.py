@@ -5,10 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import jax
-import jax.numpy as jnp
 
 import elevens
-from elevens.env import EnvParams
 from elevens.eval.match import play_match
 from elevens.eval.play import states_from_record
 

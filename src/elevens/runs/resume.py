@@ -79,14 +79,12 @@ def check_resumable(checkpointer: Any, config: TrainConfig, step: int | None = N
     matches ``config`` (outside ``RESUMABLE_FIELDS``), listing every difference. Reads only
     config.json, so it runs before anything compiles (``train`` and ``elevens robocup train``
     call it on a resume)."""
-    saved_dict = checkpointer.read_config(step)
     try:
-        saved = TrainConfig.from_dict(saved_dict, fill_missing=True)
-    except (TypeError, ValueError) as error:
-        raise RunRefusedError(
-            f"cannot resume from {checkpointer.directory}: its config.json does not describe a "
-            f"TrainConfig of this version ({error})"
-        ) from error
+        saved = TrainConfig.from_saved(
+            checkpointer.read_config(step), f"the config.json in {checkpointer.directory}"
+        )
+    except ValueError as error:
+        raise RunRefusedError(f"cannot resume: {error}") from error
     differences = config_differences(saved, config)
     if differences:
         raise RunRefusedError(

@@ -190,14 +190,9 @@ def _open_checkpoint(path: Path, iteration: int | None) -> tuple[Any, int, Any]:
                 f"no checkpoint of iteration {step} in {directory}; saved iterations: "
                 f"{checkpointer.all_steps() or 'none'}"
             )
-        raw_config = load_config(directory, step)
-        try:
-            config = TrainConfig.from_dict(raw_config, fill_missing=True)
-        except (TypeError, ValueError) as error:
-            raise ValueError(
-                f"checkpoint {directory / str(step)}: its config.json is not a TrainConfig of "
-                f"this version: {error}"
-            ) from error
+        config = TrainConfig.from_saved(
+            load_config(directory, step), f"the config.json of checkpoint {directory / str(step)}"
+        )
     except BaseException:
         checkpointer.close()
         raise
@@ -343,11 +338,9 @@ def load_exported_team(directory: Path) -> tuple[Any, Any]:
 
     raw_config, networks = load_networks(directory)
     try:
-        config = TrainConfig.from_dict(raw_config, fill_missing=True).validate()
-    except (TypeError, ValueError) as error:
-        raise ShippedTeamError(
-            f"{directory / CONFIG_FILE} is not a TrainConfig of this version: {error}"
-        ) from None
+        config = TrainConfig.from_saved(raw_config, str(directory / CONFIG_FILE)).validate()
+    except ValueError as error:
+        raise ShippedTeamError(str(error)) from None
     target = _train_state_shape(config).params
     check_like(networks, {"policy": target.policy, "critic": target.critic}, str(directory))
     return config, LearnerParams(
@@ -363,8 +356,8 @@ def export_team(
     exported folder or a shipped name) as a compact team folder (``networks.npz``,
     ``config.json`` and, when given, ``MODEL_CARD.md``): what the package ships, and what
     ``load_team`` and ``--run.init-from`` read. Returns (the folder, its TrainConfig)."""
-    from elevens.teams.trained import save_networks
     from elevens.runs.resume import load_learner_params
+    from elevens.teams.trained import save_networks
 
     config, params = load_learner_params(spec)
     networks = {"policy": params.policy, "critic": params.critic}

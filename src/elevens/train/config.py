@@ -291,6 +291,16 @@ class TrainConfig:
         return json.loads(json.dumps(dataclasses.asdict(self)))
 
     @classmethod
+    def from_saved(cls, data: Mapping[str, Any], source: str) -> TrainConfig:
+        """A config read back from ``source`` (a checkpoint's or an exported team's
+        config.json), older versions' included (``from_dict(fill_missing=True)``); a
+        ``ValueError`` naming ``source`` if it is not a TrainConfig of this version."""
+        try:
+            return cls.from_dict(data, fill_missing=True)
+        except (TypeError, ValueError) as error:
+            raise ValueError(f"{source} is not a TrainConfig of this version: {error}") from None
+
+    @classmethod
     def from_dict(cls, data: Mapping[str, Any], fill_missing: bool = False) -> TrainConfig:
         """The inverse of ``to_dict``; unknown keys are a ``ValueError``, and so are missing
         keys unless ``fill_missing``.

@@ -25,9 +25,9 @@ from elevens.cli import main
 from elevens.env.soccer import Soccer
 from elevens.robocup.play import load_robocup_team, play_robocup
 from elevens.robocup.train import RoboCupTrainConfig, play_iteration, train_robocup
+from elevens.runs.errors import RunRefusedError
 from elevens.runs.layout import EPISODES_CSV
 from elevens.runs.logging import read_metrics_csv
-from elevens.runs.resume import RunRefusedError
 from elevens.train.checkpoint import Checkpointer
 from elevens.train.config import make_config
 from elevens.train.learner import make_learner
@@ -357,7 +357,7 @@ def test_server_naive_plays_random() -> None:
 def test_init_from_a_checkpoint_starts_from_its_networks_and_resumes_with_them(
     tmp_path: Path,
 ) -> None:
-    from elevens.runs.resume import load_learner_params
+    from elevens.runs.teams import load_learner_params
 
     # A source with a non-default network, written by hand (an init, no training).
     source_config = make_config(

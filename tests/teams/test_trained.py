@@ -12,8 +12,7 @@ import pytest
 
 from elevens.cli import main
 from elevens.eval.replay import load_replay
-from elevens.runs.resume import load_learner_params
-from elevens.runs.teams import export_team, load_team, parse_team_spec
+from elevens.runs.teams import export_team, load_learner_params, load_team, parse_team_spec
 from elevens.teams.trained import (
     NETWORKS_FILE,
     ShippedTeamError,

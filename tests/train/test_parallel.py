@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from elevens.cli.train import command_flags_first
+from elevens.runs.errors import RunRefusedError
 from elevens.runs.loop import train
-from elevens.runs.resume import RunRefusedError
 from elevens.train import parallel
 from elevens.train.config import make_config
 from elevens.train.learner import make_learner

@@ -20,10 +20,11 @@ from elevens.cli.train import TrainArgs, train_command
 from elevens.nets import capacity as capacity_module
 from elevens.runs import loop as loop_module
 from elevens.runs import resume as resume_module
+from elevens.runs import teams as teams_module
+from elevens.runs.errors import RunRefusedError
 from elevens.runs.layout import CHECKPOINT_DIR
 from elevens.runs.logging import read_metrics_csv
 from elevens.runs.loop import evaluate, train
-from elevens.runs.resume import RunRefusedError
 from elevens.train import learner as learner_module
 from elevens.train.checkpoint import TREE_FILE, Checkpointer
 from elevens.train.config import TrainConfig, make_config, validate
@@ -479,7 +480,7 @@ def test_a_run_starts_from_another_team_sizes_networks(tmp_path: Path) -> None:
     # random init.
     result = train(config, progress=False)
     assert result.iteration == 2
-    trained = resume_module.load_learner_params(str(tmp_path / "run"))[1]
+    trained = teams_module.load_learner_params(str(tmp_path / "run"))[1]
 
     def distance(a: Any, b: Any) -> float:
         return float(optax.tree.norm(jax.tree.map(jnp.subtract, a, b)))

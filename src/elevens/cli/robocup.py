@@ -241,7 +241,7 @@ def play(args: RoboCupPlayArgs) -> None:
 
 def train(args: RoboCupTrainArgs) -> None:
     from elevens.robocup.train import RoboCupTrainConfig, train_robocup
-    from elevens.runs.resume import RunRefusedError
+    from elevens.runs.errors import RunRefusedError
     from elevens.train.checkpoint import CheckpointError
 
     binary = find_rcssserver(args.rcssserver)

@@ -74,8 +74,8 @@ class TrainArgs:
 
 def train_command(args: TrainArgs) -> Any:
     """Validate (before anything compiles), train, and print a summary. Returns TrainResult."""
+    from elevens.runs.errors import RunRefusedError
     from elevens.runs.loop import train
-    from elevens.runs.resume import RunRefusedError
     from elevens.train.checkpoint import CheckpointError
 
     try:

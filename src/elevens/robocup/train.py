@@ -522,7 +522,8 @@ def _open_robocup_run(
 ) -> tuple[Any, Any, bool]:
     """(learner, state, resumed): refuse another run's checkpoints or a mismatched resume
     before anything compiles, then build the learner and restore."""
-    from elevens.runs.resume import check_resumable, latest_resumable_step, load_learner_params
+    from elevens.runs.resume import check_resumable, latest_resumable_step
+    from elevens.runs.teams import load_learner_params
     from elevens.train.learner import make_learner
 
     train_config = config.train_config()

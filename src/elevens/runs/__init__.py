@@ -14,10 +14,10 @@ _LAZY = {
     "train": "elevens.runs.loop",
     "evaluate": "elevens.runs.loop",
     "TrainResult": "elevens.runs.loop",
-    "RunRefusedError": "elevens.runs.resume",
+    "RunRefusedError": "elevens.runs.errors",
     "RunLayout": "elevens.runs.layout",
     "load_team": "elevens.runs.teams",
-    "load_learner_params": "elevens.runs.resume",
+    "load_learner_params": "elevens.runs.teams",
 }
 
 __all__ = list(_LAZY)

@@ -29,9 +29,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from elevens.env.params import EnvParams
+from elevens.runs.errors import RunRefusedError
 from elevens.runs.layout import RunLayout
 from elevens.runs.resume import (
-    RunRefusedError,
     check_resumable,
     last_good_step,
     latest_resumable_step,

@@ -9,17 +9,14 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
-from typing import Any, cast
+from typing import Any
 
+from elevens.runs.errors import RunRefusedError
 from elevens.runs.layout import DAMAGED_DIR
+from elevens.runs.teams import load_learner_params
 from elevens.train import parallel
 from elevens.train.config import TrainConfig, config_differences
 from elevens.train.learner import LearnerParams
-
-
-class RunRefusedError(ValueError):
-    """A run will not start: the run directory holds another run's checkpoints, or a resume
-    does not match them. Raised before anything compiles, and nothing saved is touched."""
 
 
 def latest_resumable_step(
@@ -35,24 +32,6 @@ def latest_resumable_step(
             f"pass {resume_flag} to continue that run, or choose another {run_dir_flag}"
         )
     return latest
-
-
-def load_learner_params(text: str) -> tuple[TrainConfig, LearnerParams]:
-    """(config, LearnerParams) of a shipped team (``elevens-11v11``) or a training checkpoint:
-    a run, checkpoints or step directory, optionally ``PATH@ITERATION``."""
-    from elevens.runs.teams import load_team_folder, load_train_state, parse_team_spec
-
-    spec = parse_team_spec(text)
-    folder = load_team_folder(spec)
-    if folder is not None:
-        return cast(tuple[TrainConfig, LearnerParams], folder)
-    if spec.path is None:
-        raise RunRefusedError(
-            f"{text!r} is a handcrafted team, not a checkpoint: a run starts only from a "
-            "training checkpoint (a run, checkpoints or step directory, or PATH@ITERATION)"
-        )
-    config, state = load_train_state(spec.path, spec.iteration)
-    return config, state.params
 
 
 def load_start_params(text: str, config: TrainConfig) -> tuple[TrainConfig, LearnerParams]:

@@ -349,6 +349,26 @@ def load_exported_team(directory: Path) -> tuple[Any, Any]:
     )
 
 
+def load_learner_params(text: str) -> tuple[Any, Any]:
+    """(config, LearnerParams) of a shipped team (``elevens-11v11``) or a training checkpoint:
+    a run, checkpoints or step directory, optionally ``PATH@ITERATION``."""
+    from elevens.runs.errors import RunRefusedError
+    from elevens.train.config import TrainConfig
+    from elevens.train.learner import LearnerParams
+
+    spec = parse_team_spec(text)
+    folder = load_team_folder(spec)
+    if folder is not None:
+        return cast(tuple[TrainConfig, LearnerParams], folder)
+    if spec.path is None:
+        raise RunRefusedError(
+            f"{text!r} is a handcrafted team, not a checkpoint: a run starts only from a "
+            "training checkpoint (a run, checkpoints or step directory, or PATH@ITERATION)"
+        )
+    config, state = load_train_state(spec.path, spec.iteration)
+    return config, state.params
+
+
 def export_team(
     spec: str, directory: str | Path, card: str | None = None
 ) -> tuple[Path, Any]:
@@ -356,7 +376,6 @@ def export_team(
     exported folder or a shipped name) as a compact team folder (``networks.npz``,
     ``config.json`` and, when given, ``MODEL_CARD.md``): what the package ships, and what
     ``load_team`` and ``--run.init-from`` read. Returns (the folder, its TrainConfig)."""
-    from elevens.runs.resume import load_learner_params
     from elevens.teams.trained import save_networks
 
     config, params = load_learner_params(spec)

@@ -4,7 +4,7 @@ Each team is a folder beside this file: ``networks.npz`` (the policy's and the c
 parameters, flat arrays named by their path, read with ``allow_pickle=False``), ``config.json``
 (the ``TrainConfig`` of the run it came from, which builds the networks) and ``MODEL_CARD.md``
 (how it was trained and how it plays). ``elevens.runs.teams`` makes the names team specs, and
-``elevens.runs.resume.load_learner_params`` lets a run start from them (``--run.init-from``).
+``elevens.runs.teams.load_learner_params`` lets a run start from them (``--run.init-from``).
 
 This module only reads and writes the files (NumPy and JSON); building the networks is left to
 its callers.

@@ -210,6 +210,19 @@ def clean_checkpoint(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return directory
 
 
+def test_a_tree_entry_without_its_storage_key_is_a_checkpoint_error(
+    clean_checkpoint: Path, tmp_path: Path
+) -> None:
+    # Found by the fuzz test below: one byte changed a key's name and the JSON stayed valid.
+    directory = tmp_path / "ckpt"
+    shutil.copytree(clean_checkpoint, directory)
+    (tree_file,) = directory.rglob("tree.json")
+    tree_file.write_text(tree_file.read_text().replace('"storage_key"', '"storage_kez"'))
+    target = {"w": np.zeros(64, np.float32), "step": np.asarray(0, np.int32)}
+    with Checkpointer(directory) as checkpointer, pytest.raises(CheckpointError, match="malformed"):
+        checkpointer.restore(target, 3)
+
+
 @settings(max_examples=40, deadline=10000, suppress_health_check=FIXTURES)
 @given(edits=MUTATIONS, truncate=st.none() | st.integers(min_value=0), pick=st.integers(0))
 def test_mutated_checkpoints_raise_only_checkpoint_errors(

@@ -587,6 +587,8 @@ def _match_leaves(
         try:
             saved_kind, saved_shape = entry["kind"], tuple(entry["shape"])
             saved_dtype, crc = entry["dtype"], entry["crc32"]
+            if not isinstance(entry["storage_key"], str):
+                raise TypeError("storage_key is not a string")
         except (KeyError, TypeError) as error:
             raise CheckpointError(
                 f"corrupt checkpoint: {step_dir / _TREE_ITEM}: the entry of leaf {leaf.name} "

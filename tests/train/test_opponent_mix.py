@@ -108,3 +108,14 @@ def test_evaluation_tracks_a_trained_team_and_refuses_an_unknown_one(tmp_path: P
     with pytest.raises(ValueError, match="run.eval_teams team 'runs/none': team spec"):
         train(tiny_config(tmp_path / "run", **{"run.eval_teams": ("naive", "runs/none")}))
     assert not (tmp_path / "run").exists()
+
+
+def test_a_shorter_last_chunk_trains_against_a_trained_team_in_the_mix() -> None:
+    # A run whose iterations are not a multiple of K ends on a shorter scan, compiled for the
+    # learner at hand: a trained team's params in the mix must not stop that.
+    config = tiny_config(**{"opponent.mix": ("elevens-2v2=0.25",)})
+    learner = make_learner(config, team_on_field)
+    state = learner.init(jax.random.key(0))
+    state, metrics = learner.update(state, 1)  # K is 2
+    assert int(state.iteration) == 1
+    assert np.asarray(metrics["opponent/elevens-2v2/outcome"]).shape == (1,)

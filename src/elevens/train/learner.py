@@ -96,9 +96,10 @@ class Learned(NamedTuple):
     returns: jax.Array  # f32[U, T] the critic's targets
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, eq=False)
 class Setup:
-    """What the stages of an iteration share: the config's static parts, built once."""
+    """What the stages of an iteration share: the config's static parts, built once. Compared
+    and hashed by identity (it keys the compile caches, and a mix team's params are arrays)."""
 
     config: TrainConfig
     env: Soccer
@@ -467,18 +468,13 @@ def _computation_config(config: TrainConfig) -> TrainConfig:
 @functools.lru_cache(maxsize=8)
 def _build_learner(config: TrainConfig, load_team: TeamLoader | None) -> Learner:
     setup = make_setup(config, load_team)
-    chunk = config.run.iterations_per_chunk
-
-    def update_chunk(state: TrainState) -> tuple[TrainState, Metrics]:
-        return jax.lax.scan(lambda s, _: iteration(setup, s), state, None, length=chunk)
-
     return Learner(
         config=config,
         setup=setup,
         # Not jitted as a whole: the networks' init is (and is shared, see
         # _network_initializer); the rest is a few zeros and copies.
         init=functools.partial(init_state, setup),
-        update_chunk=parallel.jit_replicated(update_chunk, setup.mesh),
+        update_chunk=_scan_iterations(setup, config.run.iterations_per_chunk),
     )
 
 

@@ -39,6 +39,7 @@ from elevens.train.opponents import (
     LEAGUE_MIN_GAMES,
     LEAGUE_PSI,
     LEAGUE_WINDOW,
+    OPPONENT_KINDS,
     POLYAK_TAU,
     POLYAK_THRESHOLD,
 )
@@ -46,7 +47,6 @@ from elevens.train.ppo import PPOHyperparams
 from elevens.train.shaping import SHAPING_THRESHOLD, SHAPING_WINDOW
 
 OpponentKind = Literal["polyak", "self", "league"]
-OPPONENT_KINDS: tuple[str, ...] = ("polyak", "self", "league")
 EVAL_TEAMS: tuple[str, ...] = ("random", "naive", "teamwork")
 """The handcrafted teams the learner can be evaluated against (``elevens.eval.play``)."""
 _SCENARIO = re.compile(r"^(\d+)v(\d+)$")

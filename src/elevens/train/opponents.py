@@ -38,6 +38,8 @@ LEAGUE_EVERY = 10
 """A snapshot of the learner joins the league every this many iterations (section 5.2.7)."""
 LEAGUE_PSI = 2.0
 """psi of eq. 5.2: p_i proportional to w_i ** psi (section 5.2.7)."""
+OPPONENT_KINDS: tuple[str, ...] = ("polyak", "self", "league")
+"""The training opponents ``make_opponent`` builds (``opponent.kind``)."""
 
 
 def game_outcome(goals_for: ArrayLike, goals_against: ArrayLike) -> jax.Array:
@@ -130,6 +132,16 @@ def polyak_step(
     )
 
 
+def self_play_step(state: PolyakState, learner_params: Params) -> PolyakState:
+    """Plain self-play's step: the opponent becomes the latest learner (counted as an update
+    every step, never frozen)."""
+    return state.replace(
+        params=self_play_opponent(learner_params),
+        num_updates=state.num_updates + 1,
+        num_steps=state.num_steps + 1,
+    )
+
+
 def single_opponent_step(
     state: PolyakState,
     kind: str,
@@ -143,11 +155,7 @@ def single_opponent_step(
     if kind == "polyak":
         return polyak_step(state, learner_params, learner_mean_score, tau, threshold)
     if kind == "self":
-        return state.replace(
-            params=self_play_opponent(learner_params),
-            num_updates=state.num_updates + 1,
-            num_steps=state.num_steps + 1,
-        )
+        return self_play_step(state, learner_params)
     raise ValueError(f"kind={kind!r} is invalid: a single opponent is 'polyak' or 'self'")
 
 
@@ -524,7 +532,7 @@ class SelfPlayOpponent(PolyakOpponent):
     def step(
         self, polyak: PolyakState, policy_params: Params, mean_outcome: jax.Array
     ) -> PolyakState:
-        return single_opponent_step(polyak, "self", policy_params, mean_outcome)
+        return self_play_step(polyak, policy_params)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -571,9 +579,6 @@ class LeagueOpponent:
             / jnp.maximum(league.size, 1).astype(jnp.float32),
             "opponent/league_max_win_rate": jnp.max(jnp.where(live, rates, 0.0)),
         }
-
-
-OPPONENT_KINDS = ("polyak", "self", "league")
 
 
 def make_opponent(

@@ -407,7 +407,8 @@ def train_robocup(
     )
     improve = jax.jit(learner.improve)
     act = make_actor(learner.policy)
-    opponent_act = make_actor(learner.policy, per_game=learner.opponent.per_game)
+    # A league plays one snapshot per game; one shared opponent acts like the learner.
+    opponent_act = make_actor(learner.policy, per_game=True) if learner.opponent.per_game else act
     factory = env_factory or _default_env_factory(config)
     logger = RunLogger(layout.root, resumed_at=int(state.iteration) if resumed else None)
     new_file = not layout.episodes_csv.exists()

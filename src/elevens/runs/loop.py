@@ -273,7 +273,8 @@ class _Run:
         from elevens.runs.logging import RunLogger, TrainProgress
 
         self.config, self.layout, self.checkpointer = config, layout, checkpointer
-        self.learners, self.configs = learners, game_configs(config)
+        self.learners = learners
+        self.configs = {game: learner.config for game, learner in learners.items()}
         self.learner = learners[config.env.scenario]
         self.lead, self.processes = parallel.is_lead(), jax.process_count()
         run = config.run

@@ -1,5 +1,5 @@
 """The packages import in one direction (DESIGN.md):
-env -> {teams, nets} -> train -> eval -> runs -> {robocup, adapters, bench} -> cli.
+env -> {teams, nets} -> play -> train -> eval -> runs -> {robocup, adapters, bench} -> cli.
 
 Read from the source with ``ast``: every ``import`` and ``from ... import`` counts, those
 inside functions (lazy imports) included, so a lower layer cannot reach up even on first use.
@@ -19,14 +19,15 @@ LAYERS: dict[str, int] = {
     "env": 1,
     "nets": 2,
     "teams": 3,  # teams/network.py plays a network
-    "train": 4,
-    "eval": 5,
-    "runs": 6,
-    "robocup": 7,
-    "adapters": 7,
-    "bench": 7,
-    "cli": 8,
-    "__main__": 9,
+    "play": 4,  # the one unroll: training rollouts, matches, recorded games
+    "train": 5,
+    "eval": 6,
+    "runs": 7,
+    "robocup": 8,
+    "adapters": 8,
+    "bench": 8,
+    "cli": 9,
+    "__main__": 10,
 }
 """Each top-level module or package of elevens and its layer: an import may only go to a
 lower layer or stay inside its own package."""

@@ -14,7 +14,8 @@ import pytest
 import elevens
 from elevens.env.state import NUM_ENTITY_FEATURES, NUM_SELF_FEATURES, PLAYER_FEATURES
 from elevens.nets.policy import AttentionPolicy
-from elevens.train.rollout import Rollout, learner_sides, rollout
+from elevens.play import home_sides
+from elevens.train.rollout import Rollout, rollout
 
 N = 2  # players per team
 GAMES = 4
@@ -110,8 +111,8 @@ def test_episode_flags() -> None:
 
 
 def test_learner_sides_split_the_games() -> None:
-    np.testing.assert_array_equal(learner_sides(4), [0, 0, 1, 1])
-    np.testing.assert_array_equal(learner_sides(5), [0, 0, 0, 1, 1])
+    np.testing.assert_array_equal(home_sides(4), [0, 0, 1, 1])
+    np.testing.assert_array_equal(home_sides(5), [0, 0, 0, 1, 1])
     np.testing.assert_array_equal(sample_rollout().learner_side, [0, 0, 1, 1])
 
 

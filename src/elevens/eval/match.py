@@ -1,10 +1,11 @@
 """Matches: G games between any two TeamPolicies, as one compiled program.
 
-``play_match`` runs every game of a match at once: ``lax.map`` over chunks of games, ``vmap`` over
-the games of a chunk, ``lax.scan`` over the steps of an episode. The home team plays side 0 in the
-first half of the games and side 1 in the second half (``swap_sides``), so neither team profits
-from a side. Both sides are handled in the same program: each game carries its home side, and the
+``play_match`` runs every game of a match at once: ``lax.map`` over chunks of games, and within a
+chunk ``elevens.play.unroll`` (the training rollout's unroll too), batched over the chunk's games.
+The home team plays side 0 in the first half of the games and side 1 in the second half
+(``swap_sides``), so neither team profits from a side. Each game carries its home side, and the
 observation slices and the action order are chosen with ``jnp.where``, so one compile serves all.
+Each game draws its keys from its own key, so its result does not depend on the chunk size.
 """
 
 from __future__ import annotations
@@ -19,11 +20,10 @@ import numpy as np
 from flax import struct
 
 from elevens.env.params import EnvParams
-from elevens.env.soccer import Soccer, applied_actions
-from elevens.env.state import Observation, State
-from elevens.teams.base import Carry, TeamPolicy
+from elevens.env.soccer import Soccer
+from elevens.play import PolicyActor, StepView, home_sides, per_game_step_keys, unroll
+from elevens.teams.base import TeamPolicy
 from elevens.train.opponents import game_outcome as outcome_from_score
-from elevens.train.rollout import learner_sides as home_sides
 
 DEFAULT_CHUNK_SIZE = 128
 """Games vmapped together. Small batches keep the observations in cache (PERFORMANCE_NOTES.md):
@@ -58,24 +58,22 @@ class MatchResult:
     record: MatchRecord | None = None  # per-step history when played with record=True
 
 
-class _GameCarry(struct.PyTreeNode):
-    state: State
-    home_carry: Carry
-    away_carry: Carry
+def _match_record(view: StepView) -> MatchRecord:
+    """What a recorded match keeps of each step."""
+    state = view.state
+    return MatchRecord(
+        positions=state.positions,
+        headings=state.headings,
+        ball_position=state.ball_position,
+        ball_velocity=state.ball_velocity,
+        score=state.score,
+        actions=view.actions,
+        kicks=view.info.kicks,
+        pushes=view.info.pushes,
+    )
 
 
-class _GameInput(struct.PyTreeNode):
-    key: jax.Array  # key[] of one game
-    home_side: jax.Array  # i32[]
-
-
-def _side_view(obs: Observation, side: jax.Array) -> Observation:
-    """The observation of team ``side`` (traced i32[]), as a select, not a gather."""
-    first, second = obs.team(0), obs.team(1)
-    return jax.tree.map(lambda a, b: jnp.where(side == 0, a, b), first, second)
-
-
-def _play_game(
+def _play_chunk(
     env: Soccer,
     home: TeamPolicy,
     away: TeamPolicy,
@@ -84,51 +82,20 @@ def _play_game(
     params: EnvParams,
     home_params: Any,
     away_params: Any,
-    game: _GameInput,
+    games: tuple[jax.Array, jax.Array],
 ) -> tuple[jax.Array, MatchRecord | None]:
-    """One game -> (final score i32[2] by side, per-step record or None)."""
-    n = env.players_per_team
-    reset_key, play_key = jax.random.split(game.key)
-    state, _ = env.reset(reset_key, params)
-    carry = _GameCarry(state=state, home_carry=home.init_carry(n), away_carry=away.init_carry(n))
-
-    def step(carry: _GameCarry, step_keys: jax.Array) -> tuple[_GameCarry, MatchRecord | None]:
-        home_key, away_key, env_key = step_keys[0], step_keys[1], step_keys[2]
-        # Observe the carried state, not the one a step would return: XLA then materialises it
-        # instead of fusing the physics into every observation element (PERFORMANCE_NOTES.md).
-        obs = env.observe(carry.state, params)
-        side = game.home_side
-        home_carry, home_actions = home.act(
-            home_params, carry.home_carry, _side_view(obs, side), home_key
-        )
-        away_carry, away_actions = away.act(
-            away_params, carry.away_carry, _side_view(obs, 1 - side), away_key
-        )
-        actions = jnp.where(
-            side == 0,
-            jnp.stack([home_actions, away_actions]),
-            jnp.stack([away_actions, home_actions]),
-        ).astype(jnp.float32)
-        # What the env applies (it clips, and NaN counts as 0), so the record holds that.
-        actions = applied_actions(actions)
-        state, _, _, info = env.transition(env_key, carry.state, actions, params)
-        history = None
-        if record:
-            history = MatchRecord(
-                positions=carry.state.positions,
-                headings=carry.state.headings,
-                ball_position=carry.state.ball_position,
-                ball_velocity=carry.state.ball_velocity,
-                score=carry.state.score,
-                actions=actions,
-                kicks=info.kicks,
-                pushes=info.pushes,
-            )
-        return _GameCarry(state=state, home_carry=home_carry, away_carry=away_carry), history
-
-    # All keys of the episode in one draw: each threefry call is a loop of its own on CPU.
-    step_keys = jax.random.split(play_key, (num_steps, 3))  # (home, away, env) per step
-    final, history = jax.lax.scan(step, carry, step_keys)
+    """A chunk of games (keys key[C], home sides i32[C]) -> (final scores i32[C, 2] by side,
+    per-step records [C, T, ...] or None). Game ``g`` draws everything from its own key."""
+    keys, sides = games
+    reset_keys, play_keys = jnp.moveaxis(jax.vmap(jax.random.split)(keys), 1, 0)
+    states, _ = jax.vmap(env.reset, in_axes=(0, None))(reset_keys, params)
+    final, history = unroll(
+        env, params, PolicyActor(home, home_params), PolicyActor(away, away_params), states,
+        sides, per_game_step_keys(play_keys, num_steps),
+        _match_record if record else lambda view: None,
+    )
+    if history is not None:
+        history = jax.tree.map(lambda leaf: jnp.moveaxis(leaf, 0, 1), history)  # [C, T, ...]
     return final.state.score, history
 
 
@@ -150,10 +117,14 @@ def _play_games(
     record: bool,
 ) -> tuple[jax.Array, MatchRecord | None]:
     """keys key[G'], sides i32[G'] (G' a multiple of chunk_size) -> (scores i32[G', 2], record)."""
-    game = functools.partial(
-        _play_game, env, home, away, num_steps, record, params, home_params, away_params
+    chunk = functools.partial(
+        _play_chunk, env, home, away, num_steps, record, params, home_params, away_params
     )
-    return jax.lax.map(game, _GameInput(key=keys, home_side=sides), batch_size=chunk_size)
+    chunks = keys.shape[0] // chunk_size
+    by_chunk = lambda leaf: leaf.reshape(chunks, chunk_size, *leaf.shape[1:])  # noqa: E731
+    scores, history = jax.lax.map(chunk, (by_chunk(keys), by_chunk(sides)))
+    unchunk = lambda leaf: leaf.reshape(chunks * chunk_size, *leaf.shape[2:])  # noqa: E731
+    return unchunk(scores), jax.tree.map(unchunk, history)
 
 
 def play_match(

@@ -13,8 +13,8 @@ after ``episode_length`` steps. If a server dies mid-episode, RoboCupEnv restart
 fresh episode; that step is marked as an episode end and the next one as a start (the LSTM memory
 is zeroed there), so the advantages never run across it.
 
-Games alternate sides as in the simulator (``learner_sides``): the learner plays the left side
-in the first half of the games and the right side in the others.
+Games alternate sides as in the simulator (``elevens.play.home_sides``): the learner plays the
+left side in the first half of the games and the right side in the others.
 """
 
 from __future__ import annotations
@@ -34,10 +34,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from elevens.env.state import GlobalState, Observation
+from elevens.play import home_sides
 from elevens.runs.layout import RunLayout
 from elevens.train.config import TrainConfig, make_config
 from elevens.train.opponents import OPPONENT_KINDS
-from elevens.train.rollout import Rollout, Transition, learner_sides
+from elevens.train.rollout import Rollout, Transition
 
 log = logging.getLogger(__name__)
 
@@ -244,7 +245,7 @@ def play_iteration(
     actions are not computed (the other program plays them). ``opponent_act``: how the
     opponent acts when it differs from ``act`` (one network per game: a league's)."""
     num_games = len(envs)
-    sides = np.zeros(num_games, np.int32) if external_opponent else learner_sides(num_games)
+    sides = np.zeros(num_games, np.int32) if external_opponent else home_sides(num_games)
     others = 1 - sides
     index = np.arange(num_games)
     n = envs[0].players_per_team

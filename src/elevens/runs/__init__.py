@@ -2,7 +2,7 @@
 drives the compiled learner (``train``), loading trained teams from runs and shipped folders,
 and reading learning curves back.
 
-Layers: env -> {teams, nets} -> train -> eval -> runs -> {robocup, adapters, bench} -> cli.
+Layers: env -> {teams, nets} -> play -> train -> eval -> runs -> {robocup, adapters, bench} -> cli.
 """
 
 from __future__ import annotations

@@ -223,6 +223,26 @@ def test_a_tree_entry_without_its_storage_key_is_a_checkpoint_error(
         checkpointer.restore(target, 3)
 
 
+def test_a_damaged_step_metadata_file_is_a_checkpoint_error(
+    clean_checkpoint: Path, tmp_path: Path
+) -> None:
+    # Found by the fuzz test below: two bytes changed two keys of Orbax's own metadata file
+    # (Orbax files the first unknown key under custom_metadata and refuses the second), which
+    # Orbax reads while listing the steps.
+    directory = tmp_path / "ckpt"
+    shutil.copytree(clean_checkpoint, directory)
+    (metadata,) = directory.rglob("_CHECKPOINT_METADATA")
+    text = metadata.read_text()
+    assert '"item_handlers"' in text and '"commit_timestamp_nsecs"' in text
+    text = text.replace('"item_handlers"', '" tem_handlers"')
+    metadata.write_text(text.replace('"commit_timestamp_nsecs"', '" ommit_timestamp_nsecs"'))
+    target = {"w": np.zeros(64, np.float32), "step": np.asarray(0, np.int32)}
+    with Checkpointer(directory) as checkpointer, pytest.raises(
+        CheckpointError, match="cannot list its steps"
+    ):
+        checkpointer.restore(target, 3)
+
+
 @settings(max_examples=40, deadline=10000, suppress_health_check=FIXTURES)
 @given(edits=MUTATIONS, truncate=st.none() | st.integers(min_value=0), pick=st.integers(0))
 def test_mutated_checkpoints_raise_only_checkpoint_errors(

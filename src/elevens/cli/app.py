@@ -13,24 +13,17 @@ from typing import Annotated
 
 import tyro
 
+from elevens.cli import eval as eval_commands
+from elevens.cli import robocup as robocup_commands
 from elevens.cli.bench import TrainBenchArgs, bench_train_command
-from elevens.cli.checks import EXIT_BAD_INPUT, EXIT_INTERRUPTED, check_numeric_args, one_line
-from elevens.cli.eval import (
-    AnalyzeArgs,
-    CurvesArgs,
-    RenderArgs,
-    TournamentArgs,
-    ViewArgs,
-    run_eval_command,
-)
-from elevens.cli.robocup import (
-    RoboCupBenchArgs,
-    RoboCupMatchArgs,
-    RoboCupPlayArgs,
-    RoboCupServeArgs,
-    RoboCupTeamArgs,
-    RoboCupTrainArgs,
-    run_robocup_command,
+from elevens.cli.checks import (
+    EXIT_BAD_INPUT,
+    EXIT_INTERRUPTED,
+    Commands,
+    check_numeric_args,
+    one_line,
+    run_command,
+    subcommand_union,
 )
 from elevens.cli.train import TrainArgs, command_flags_first, train_command
 
@@ -145,24 +138,16 @@ def bench_env(args: EnvBenchArgs) -> None:
         print(f"wrote {plot_env_bench(results, args.plot)}", file=sys.stderr)
 
 
-Command = (
-    Annotated[PlayArgs, tyro.conf.subcommand("play")]
-    | Annotated[ExportTeamArgs, tyro.conf.subcommand("export-team")]
-    | Annotated[EnvBenchArgs, tyro.conf.subcommand("bench-env")]
-    | Annotated[TrainArgs, tyro.conf.subcommand("train")]
-    | Annotated[TrainBenchArgs, tyro.conf.subcommand("bench-train")]
-    | Annotated[TournamentArgs, tyro.conf.subcommand("tournament")]
-    | Annotated[AnalyzeArgs, tyro.conf.subcommand("analyze")]
-    | Annotated[CurvesArgs, tyro.conf.subcommand("curves")]
-    | Annotated[RenderArgs, tyro.conf.subcommand("render")]
-    | Annotated[ViewArgs, tyro.conf.subcommand("view")]
-    | Annotated[RoboCupServeArgs, tyro.conf.subcommand("robocup-serve")]
-    | Annotated[RoboCupPlayArgs, tyro.conf.subcommand("robocup-play")]
-    | Annotated[RoboCupTrainArgs, tyro.conf.subcommand("robocup-train")]
-    | Annotated[RoboCupBenchArgs, tyro.conf.subcommand("robocup-bench")]
-    | Annotated[RoboCupMatchArgs, tyro.conf.subcommand("robocup-match")]
-    | Annotated[RoboCupTeamArgs, tyro.conf.subcommand("robocup-team")]
-)
+COMMANDS: Commands = {
+    "play": (PlayArgs, play),
+    "export-team": (ExportTeamArgs, export_team),
+    "bench-env": (EnvBenchArgs, bench_env),
+    "train": (TrainArgs, train_command),
+    "bench-train": (TrainBenchArgs, bench_train_command),
+    **eval_commands.COMMANDS,
+    **robocup_commands.COMMANDS,
+}
+"""Every subcommand: name -> (its args dataclass, the function that runs it)."""
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -186,10 +171,7 @@ def main(argv: list[str] | None = None) -> None:
     command = f"elevens {name}".rstrip()
     args = _parse(argv, command, debug)
     # `robocup team` joins someone else's server: it needs their network.
-    starts_a_server = isinstance(
-        args, RoboCupPlayArgs | RoboCupTrainArgs | RoboCupBenchArgs | RoboCupMatchArgs
-    )
-    if from_command_line and starts_a_server:
+    if from_command_line and isinstance(args, robocup_commands.STARTS_A_SERVER):
         from elevens.robocup.isolation import enter_private_network
 
         # rcssserver listens on every interface: the command goes on in a network of its own.
@@ -220,7 +202,7 @@ def _parse(argv: list[str], command: str, debug: bool) -> object:
     box = io.StringIO()
     try:
         with contextlib.redirect_stderr(box):
-            return tyro.cli(Command, args=argv, prog="elevens")
+            return tyro.cli(subcommand_union(COMMANDS), args=argv, prog="elevens")
     except SystemExit as stop:
         text = box.getvalue()
         if stop.code == EXIT_BAD_INPUT and text.strip() and not debug:
@@ -261,26 +243,4 @@ def _interrupt(signum: int, frame: object) -> None:
 
 def _run(args: object) -> None:
     check_numeric_args(args)
-    if isinstance(args, PlayArgs):
-        play(args)
-    elif isinstance(args, ExportTeamArgs):
-        export_team(args)
-    elif isinstance(args, EnvBenchArgs):
-        bench_env(args)
-    elif isinstance(args, TrainArgs):
-        train_command(args)
-    elif isinstance(args, TrainBenchArgs):
-        bench_train_command(args)
-    elif isinstance(
-        args,
-        RoboCupServeArgs
-        | RoboCupPlayArgs
-        | RoboCupTrainArgs
-        | RoboCupBenchArgs
-        | RoboCupMatchArgs
-        | RoboCupTeamArgs,
-    ):
-        run_robocup_command(args)
-    elif isinstance(args, TournamentArgs | AnalyzeArgs | CurvesArgs | RenderArgs | ViewArgs):
-        run_eval_command(args)
-
+    run_command(COMMANDS, args)

@@ -1,4 +1,4 @@
-"""What every subcommand shares to refuse bad input: one-line errors and range checks.
+"""What every subcommand shares: one-line errors, range checks, and the command tables.
 
 Exit status of every ``elevens`` command: 0 done, 2 bad input (one line on stderr), 130
 interrupted (a training run after its checkpoint), 1 anything else (with its traceback).
@@ -8,7 +8,10 @@ from __future__ import annotations
 
 import math
 import sys
-from typing import NoReturn
+from collections.abc import Callable
+from typing import Annotated, Any, NoReturn, Union
+
+import tyro
 
 EXIT_BAD_INPUT = 2
 """A command refused for its input: a bad value, an unknown team, a missing or damaged file, a
@@ -84,3 +87,24 @@ def check_numeric_args(args: object) -> None:
             if not (math.isfinite(number) and low <= number <= high):
                 allowed = f">= {low:g}" if high == math.inf else f"from {low:g} to {high:g}"
                 raise ValueError(f"{flag}={number!r} is invalid: it must be {allowed}")
+
+
+Handler = Callable[[Any], Any]
+Commands = dict[str, tuple[type, Handler]]
+"""Subcommand name -> (its args dataclass, the function that runs it): each CLI module's
+table, and ``elevens.cli.app``'s union of them."""
+
+
+def subcommand_union(commands: Commands) -> Any:
+    """The tyro union of ``commands``' args types, each under its subcommand name."""
+    members = tuple(
+        Annotated[args_type, tyro.conf.subcommand(name)]
+        for name, (args_type, _) in commands.items()
+    )
+    return Union[members]  # noqa: UP007 (built at run time from the table)
+
+
+def run_command(commands: Commands, args: object) -> Any:
+    """Run the handler of ``args``'s type in ``commands``."""
+    handlers = {args_type: handler for args_type, handler in commands.values()}
+    return handlers[type(args)](args)

@@ -20,11 +20,12 @@ from __future__ import annotations
 import dataclasses
 import sys
 import time
-from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any
 
 import tyro
+
+from elevens.cli.checks import Commands, run_command, subcommand_union
 
 
 @dataclasses.dataclass(frozen=True)
@@ -335,35 +336,21 @@ def view_command(args: ViewArgs) -> None:
     view(args.replays, port=args.port, open_browser=args.open)
 
 
-COMMANDS: dict[type, Callable[[Any], Any]] = {
-    TournamentArgs: tournament_command,
-    AnalyzeArgs: analyze_command,
-    CurvesArgs: curves_command,
-    RenderArgs: render_command,
-    ViewArgs: view_command,
+COMMANDS: Commands = {
+    "tournament": (TournamentArgs, tournament_command),
+    "analyze": (AnalyzeArgs, analyze_command),
+    "curves": (CurvesArgs, curves_command),
+    "render": (RenderArgs, render_command),
+    "view": (ViewArgs, view_command),
 }
-"""Args type -> command, for ``elevens.cli.app`` to dispatch with one lookup."""
-
-
-def run_eval_command(args: Any) -> Any:
-    """Run the command of an eval args object (any of the dataclasses above)."""
-    return COMMANDS[type(args)](args)
-
-
-EvalCommand = (
-    Annotated[TournamentArgs, tyro.conf.subcommand("tournament")]
-    | Annotated[AnalyzeArgs, tyro.conf.subcommand("analyze")]
-    | Annotated[CurvesArgs, tyro.conf.subcommand("curves")]
-    | Annotated[RenderArgs, tyro.conf.subcommand("render")]
-    | Annotated[ViewArgs, tyro.conf.subcommand("view")]
-)
-"""The five subcommands as one tyro union (``elevens.cli`` adds its members to its own)."""
+"""The eval subcommands: name -> (args, command); ``elevens.cli.app`` takes them as they are."""
 
 
 def main(argv: list[str] | None = None) -> Any:
     """``python -m elevens.cli.eval SUBCOMMAND ...``: the eval subcommands on their own."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    return run_eval_command(tyro.cli(EvalCommand, args=argv, prog="elevens"))
+    args = tyro.cli(subcommand_union(COMMANDS), args=argv, prog="elevens")
+    return run_command(COMMANDS, args)
 
 
 if __name__ == "__main__":

@@ -11,7 +11,7 @@ import sys
 import time
 from dataclasses import asdict, dataclass
 
-from elevens.cli.checks import EXIT_INTERRUPTED, exit_with_error
+from elevens.cli.checks import EXIT_INTERRUPTED, Commands, exit_with_error
 from elevens.robocup.server import find_rcssserver
 
 
@@ -184,16 +184,6 @@ class RoboCupTeamArgs:
     """Print the result as one JSON object."""
 
 
-RoboCupArgs = (
-    RoboCupServeArgs
-    | RoboCupPlayArgs
-    | RoboCupTrainArgs
-    | RoboCupBenchArgs
-    | RoboCupMatchArgs
-    | RoboCupTeamArgs
-)
-
-
 def serve(args: RoboCupServeArgs) -> None:
     from elevens.robocup.server import ServerProcess
 
@@ -357,16 +347,15 @@ def team(args: RoboCupTeamArgs) -> None:
         )
 
 
-def run_robocup_command(args: RoboCupArgs) -> None:
-    if isinstance(args, RoboCupMatchArgs):
-        match(args)
-    elif isinstance(args, RoboCupTeamArgs):
-        team(args)
-    elif isinstance(args, RoboCupServeArgs):
-        serve(args)
-    elif isinstance(args, RoboCupPlayArgs):
-        play(args)
-    elif isinstance(args, RoboCupTrainArgs):
-        train(args)
-    else:
-        bench(args)
+COMMANDS: Commands = {
+    "robocup-serve": (RoboCupServeArgs, serve),
+    "robocup-play": (RoboCupPlayArgs, play),
+    "robocup-train": (RoboCupTrainArgs, train),
+    "robocup-bench": (RoboCupBenchArgs, bench),
+    "robocup-match": (RoboCupMatchArgs, match),
+    "robocup-team": (RoboCupTeamArgs, team),
+}
+"""The RoboCup subcommands: name -> (args, command)."""
+
+STARTS_A_SERVER = (RoboCupPlayArgs, RoboCupTrainArgs, RoboCupBenchArgs, RoboCupMatchArgs)
+"""The commands that start rcssserver (``robocup team`` joins someone else's server)."""

@@ -317,9 +317,16 @@ class Checkpointer:
         """Committed checkpoint steps, ascending. Interrupted or half-copied saves are left out."""
         if not self.directory.is_dir():
             return []
-        manager = self._get_manager()
-        manager.reload()  # see steps written or removed by anyone since the last call
-        steps = (int(step) for step in manager.all_steps())
+        try:
+            manager = self._get_manager()
+            manager.reload()  # see steps written or removed by anyone since the last call
+            listed = manager.all_steps()
+        except Exception as error:  # Orbax reads every step's metadata file here
+            raise CheckpointError(
+                f"corrupt checkpoint in {self.directory}: Orbax cannot list its steps: "
+                f"{type(error).__name__}: {error}"
+            ) from error
+        steps = (int(step) for step in listed)
         return sorted(s for s in steps if (self.step_directory(s) / COMMIT_MARKER).is_file())
 
     def latest_step(self) -> int | None:

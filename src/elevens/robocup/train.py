@@ -34,7 +34,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from elevens.env.state import GlobalState, Observation
-from elevens.play import home_sides
+from elevens.play import NetworkActor, home_sides
 from elevens.runs.layout import RunLayout
 from elevens.train.config import TrainConfig, make_config
 from elevens.train.opponents import OPPONENT_KINDS
@@ -193,16 +193,15 @@ def _pick(tree: Any, sides: np.ndarray) -> Any:
 
 def make_actor(policy: Any, per_game: bool = False) -> Callable[..., Any]:
     """Jitted: (params, carry, obs [G, n], reset bool[G, n], key) ->
-    (carry, pre_tanh f32[G, n, 2], log_prob f32[G, n], action f32[G, n, 2]). ``per_game``:
-    params with a leading [G] axis, one network per game (a league's snapshots)."""
-    apply = jax.vmap(policy.apply) if per_game else policy.apply
+    (carry, pre_tanh f32[G, n, 2], log_prob f32[G, n], action f32[G, n, 2]): the simulator's
+    ``elevens.play.NetworkActor``, stepped from the host. ``per_game``: params with a leading
+    [G] axis, one network per game (a league's snapshots)."""
 
     @jax.jit
     def act(params: Any, carry: Any, obs: Observation, reset: jax.Array, key: jax.Array) -> Any:
-        carry, output = apply(params, carry, obs, reset)
-        distribution = output.distribution()
-        sample = distribution.sample(key)
-        return carry, sample.pre_tanh, distribution.log_prob(sample.pre_tanh), sample.action
+        actor = NetworkActor(policy, params, per_game=per_game)
+        carry, action, sample = actor.act(carry, obs, reset, key)
+        return carry, sample.pre_tanh, sample.log_prob, action
 
     return act
 

@@ -27,6 +27,8 @@ _PRESET_HELP = {
     "quickstart": "1 v 1 on a small field, 100-step episodes: learns to beat the random team "
     "within minutes on a laptop CPU.",
     "2v2": "The thesis' 4-player setting: random spawns, 400-step episodes, table 6.1.",
+    "2v2-gpu": "The 2v2 preset with batches for one GPU (1,024 games an iteration): on an "
+    "H200 it beats naive and teamwork at 11 v 11 within 4 minutes.",
     "11v11": "The full game against a Polyak-averaged opponent, table 6.1.",
 }
 

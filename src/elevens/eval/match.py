@@ -26,9 +26,8 @@ from elevens.teams.base import TeamPolicy
 from elevens.train.opponents import game_outcome as outcome_from_score
 
 DEFAULT_CHUNK_SIZE = 128
-"""Games vmapped together. Small batches keep the observations in cache (PERFORMANCE_NOTES.md):
-500 games of 11 v 11 (teamwork vs naive, 400 steps) ran in 1.5 s at chunks of 125, 1.6 s at 250
-and 2.2 s at 500 on the 2-core CPU, after a compile of a few seconds."""
+"""Games vmapped together. Small batches keep the observations in cache (PERFORMANCE_NOTES.md;
+the chunk sizes measured are in docs/results/throughput.md)."""
 
 
 @struct.dataclass

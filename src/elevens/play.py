@@ -89,7 +89,8 @@ class NetworkActor:
 @dataclasses.dataclass(frozen=True)
 class PolicyActor:
     """Any ``TeamPolicy`` (handcrafted, a network behind ``NetworkTeam``), vmapped over games.
-    Its key is one per game (``key[G]``), or one key split into G."""
+    Its key is one per game (``key[G]``), or one key split into G (typed keys, as
+    ``jax.random.key`` makes them: the rank tells the two apart)."""
 
     policy: TeamPolicy
     params: Any = None

@@ -8,6 +8,7 @@ import functools
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 import elevens
 from elevens.env import Observation
@@ -82,6 +83,15 @@ def test_recorded_actions_are_the_applied_ones() -> None:
     wild = np.stack([recorded[:, 0, 0], recorded[:, 1, 1]])  # the home side of each game
     np.testing.assert_array_equal(wild[..., 0], 0.0)
     np.testing.assert_array_equal(wild[..., 1], 1.0)
+
+
+def test_a_raw_key_is_refused() -> None:
+    actor = PolicyActor(NaiveTeam())
+    env, params = elevens.make("1v1")
+    state, _ = env.reset(jax.random.key(0), params)
+    obs = jax.tree.map(lambda leaf: leaf[None], env.observe(state, params).team(0))
+    with pytest.raises(TypeError, match="typed keys"):
+        actor.act(actor.init_carry(1, 1), obs, jnp.zeros((1, 1), bool), jax.random.PRNGKey(0))
 
 
 def test_jit_and_eager_unroll_agree() -> None:

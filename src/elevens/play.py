@@ -102,6 +102,10 @@ class PolicyActor:
     def act(
         self, carry: Carry, obs: Observation, reset: jax.Array, key: jax.Array
     ) -> tuple[Carry, jax.Array, None]:
+        if not jax.dtypes.issubdtype(key.dtype, jax.dtypes.prng_key):
+            raise TypeError(
+                f"PolicyActor needs typed keys (jax.random.key), got an array of {key.dtype}"
+            )
         num_games = reset.shape[0]
         keys = key if key.ndim == 1 else jax.random.split(key, num_games)
         carry, actions = jax.vmap(self.policy.act, in_axes=(None, 0, 0, 0))(

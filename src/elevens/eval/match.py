@@ -161,6 +161,8 @@ def play_match(
     chunk = math.ceil(num_games / num_chunks)
     padded = num_chunks * chunk
     sides = home_sides(num_games, swap_sides)
+    if not jax.dtypes.issubdtype(key.dtype, jax.dtypes.prng_key):
+        key = jax.random.wrap_key_data(key)  # a legacy uint32[2] key: the same stream
     game_keys = jax.random.split(key, num_games)
     if padded > num_games:
         game_keys = jnp.concatenate([game_keys, game_keys[: padded - num_games]])

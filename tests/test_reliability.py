@@ -210,17 +210,32 @@ def clean_checkpoint(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return directory
 
 
+def _restore_edited_copy(
+    clean_checkpoint: Path, tmp_path: Path, filename: str, replacements: dict[str, str]
+) -> None:
+    """Restore a copy of the clean checkpoint whose ``filename`` had each key string of
+    ``replacements`` replaced (each must be there)."""
+    directory = tmp_path / "ckpt"
+    shutil.copytree(clean_checkpoint, directory)
+    (edited,) = directory.rglob(filename)
+    text = edited.read_text()
+    for old, new in replacements.items():
+        assert old in text, old
+        text = text.replace(old, new)
+    edited.write_text(text)
+    target = {"w": np.zeros(64, np.float32), "step": np.asarray(0, np.int32)}
+    with Checkpointer(directory) as checkpointer:
+        checkpointer.restore(target, 3)
+
+
 def test_a_tree_entry_without_its_storage_key_is_a_checkpoint_error(
     clean_checkpoint: Path, tmp_path: Path
 ) -> None:
     # Found by the fuzz test below: one byte changed a key's name and the JSON stayed valid.
-    directory = tmp_path / "ckpt"
-    shutil.copytree(clean_checkpoint, directory)
-    (tree_file,) = directory.rglob("tree.json")
-    tree_file.write_text(tree_file.read_text().replace('"storage_key"', '"storage_kez"'))
-    target = {"w": np.zeros(64, np.float32), "step": np.asarray(0, np.int32)}
-    with Checkpointer(directory) as checkpointer, pytest.raises(CheckpointError, match="malformed"):
-        checkpointer.restore(target, 3)
+    with pytest.raises(CheckpointError, match="malformed"):
+        _restore_edited_copy(
+            clean_checkpoint, tmp_path, "tree.json", {'"storage_key"': '"storage_kez"'}
+        )
 
 
 def test_a_damaged_step_metadata_file_is_a_checkpoint_error(
@@ -229,18 +244,12 @@ def test_a_damaged_step_metadata_file_is_a_checkpoint_error(
     # Found by the fuzz test below: two bytes changed two keys of Orbax's own metadata file
     # (Orbax files the first unknown key under custom_metadata and refuses the second), which
     # Orbax reads while listing the steps.
-    directory = tmp_path / "ckpt"
-    shutil.copytree(clean_checkpoint, directory)
-    (metadata,) = directory.rglob("_CHECKPOINT_METADATA")
-    text = metadata.read_text()
-    assert '"item_handlers"' in text and '"commit_timestamp_nsecs"' in text
-    text = text.replace('"item_handlers"', '" tem_handlers"')
-    metadata.write_text(text.replace('"commit_timestamp_nsecs"', '" ommit_timestamp_nsecs"'))
-    target = {"w": np.zeros(64, np.float32), "step": np.asarray(0, np.int32)}
-    with Checkpointer(directory) as checkpointer, pytest.raises(
-        CheckpointError, match="cannot list its steps"
-    ):
-        checkpointer.restore(target, 3)
+    replacements = {
+        '"item_handlers"': '" tem_handlers"',
+        '"commit_timestamp_nsecs"': '" ommit_timestamp_nsecs"',
+    }
+    with pytest.raises(CheckpointError, match="cannot list its steps"):
+        _restore_edited_copy(clean_checkpoint, tmp_path, "_CHECKPOINT_METADATA", replacements)
 
 
 @settings(max_examples=40, deadline=10000, suppress_health_check=FIXTURES)

@@ -202,7 +202,7 @@ def home_sides(num_games: int, swap_sides: bool = True) -> np.ndarray:
 
 def home_sides_in_blocks(blocks: Sequence[int]) -> np.ndarray:
     """``home_sides`` within each block of games (each opponent of a mix sees both sides)."""
-    return np.concatenate([home_sides(games) for games in blocks]).astype(np.int32)
+    return np.concatenate([home_sides(games) for games in blocks])
 
 
 def pick_side(tree: Any, side: jax.Array) -> Any:

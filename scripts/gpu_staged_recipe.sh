@@ -10,12 +10,12 @@
 set -eu
 PY=${PY:-python3}
 R=${R:-/tmp/gpuruns}
-common="--run.iterations-per-chunk 5 --run.no-write-gif --run.keep-checkpoints 1 --run.checkpoint-every 20"
-$PY -m elevens train 2v2 --run.run-dir "$R/s1" --run.games-per-iteration "$G1" \
-  --ppo.batch-size $((G1 * 2)) --ppo.minibatch-size "$MB1" --run.max-minutes "$MIN1" \
+common="--iterations-per-chunk 5 --run.no-write-gif --run.keep-checkpoints 1 --run.checkpoint-every 20"
+$PY -m elevens train 2v2 --run.run-dir "$R/s1" --games-per-iteration "$G1" \
+  --ppo.minibatch-size "$MB1" --run.max-minutes "$MIN1" \
   --run.eval-every 0 --run.eval-teams naive --run.eval-games 200 $common
 $PY -m elevens train 11v11 --run.run-dir "$R/s2" --run.init-from "$R/s1" \
-  --run.games-per-iteration "$G2" --ppo.batch-size $((G2 * 11)) --ppo.minibatch-size "$MB2" \
+  --games-per-iteration "$G2" --ppo.minibatch-size "$MB2" \
   --run.max-minutes "$MIN2" --ppo.learning-rate 3e-4 --ppo.advantage-estimator gae \
   --ppo.gamma 0.99 --ppo.normalize-advantages --ppo.entropy-weight 1e-3 \
   --opponent.polyak-tau 0.05 --env.approach-shaping-weight 0 \

@@ -36,7 +36,7 @@ four=$!
 nice -n 10 taskset -c 0 "$elevens" train 11v11 $(resume_flag "$runs/22p") --no-progress \
   --run.init-from "$runs/2v2_start" --run.max-minutes "$((budget - switch))" \
   --run.run-dir "$runs/22p" --env.mix 2v2 --env.mix-shares 0.5 \
-  --run.games-per-iteration 16 --ppo.batch-size 176 \
+  --games-per-iteration 16 \
   --ppo.minibatch-size 44 --ppo.learning-rate 3e-4 --ppo.gamma 0.99 \
   --ppo.advantage-estimator gae --ppo.normalize-advantages --ppo.entropy-weight 1e-3 \
   --opponent.polyak-tau 0.05 --env.no-shaping-schedule --env.approach-shaping-weight 0 \

@@ -153,11 +153,11 @@ def checkpoint_2v2(tmp_path_factory):
         "2v2",
         **{
             "network.features": 16, "network.num_heads": 2, "network.lstm_features": 8,
-            "network.lstm_layers": 1, "run.games_per_iteration": 4, "ppo.batch_size": 8,
+            "network.lstm_layers": 1, "games_per_iteration": 4,
             "ppo.minibatch_size": 4, "run.eval_deterministic": True,
         },
     )
-    state = make_learner(config).init(jax.random.key(0))
+    state = make_learner(config.learner).init(jax.random.key(0))
     run = tmp_path_factory.mktemp("run")
     with Checkpointer(run / "checkpoints") as checkpointer:
         checkpointer.save(3, state, config.to_dict(), {"iteration": 3})

@@ -24,7 +24,12 @@ import pytest
 from elevens.cli import main
 from elevens.env.soccer import Soccer
 from elevens.robocup.play import load_robocup_team, play_robocup
-from elevens.robocup.train import RoboCupTrainConfig, play_iteration, train_robocup
+from elevens.robocup.train import (
+    RoboCupTrainConfig,
+    make_robocup_config,
+    play_iteration,
+    train_robocup,
+)
 from elevens.runs.errors import RunRefusedError
 from elevens.runs.layout import EPISODES_CSV
 from elevens.runs.logging import read_metrics_csv
@@ -91,26 +96,52 @@ class SimEnv:
 
 
 def small_config(tmp_path: Path, **overrides: Any) -> RoboCupTrainConfig:
-    values: dict[str, Any] = dict(
-        players_per_team=1, servers=2, episode_length=12, iterations=2, minutes=None,
-        run_dir=str(tmp_path / "run"), checkpoint_every=1, threads=False,
-    )
+    players = overrides.pop("env.players_per_team", 1)
+    values: dict[str, Any] = {
+        "env.players_per_team": players, "ppo.minibatch_size": players,
+        "games_per_iteration": 2, "env.episode_length": 12, "run.iterations": 2,
+        "run.max_minutes": 0.0, "run.run_dir": str(tmp_path / "run"),
+        "run.checkpoint_every": 1, "server.threads": False,
+    }
     values.update(overrides)
-    return RoboCupTrainConfig(**values)
+    return make_robocup_config(**values)
 
 
 def test_config_rejects_bad_values_by_name() -> None:
-    with pytest.raises(ValueError, match="servers=0"):
-        RoboCupTrainConfig(servers=0)
-    with pytest.raises(ValueError, match="opponent='neighbours' is invalid: it must be 'polyak'"):
-        RoboCupTrainConfig(opponent="neighbours")
+    with pytest.raises(ValueError, match="games_per_iteration=0"):
+        make_robocup_config(games_per_iteration=0)
+    with pytest.raises(ValueError, match="opponent.kind='neighbours' is invalid"):
+        make_robocup_config(**{"opponent.kind": "neighbours"})
     with pytest.raises(ValueError, match="learning_rate=-0.1"):
-        RoboCupTrainConfig(learning_rate=-0.1)
+        make_robocup_config(**{"ppo.learning_rate": -0.1})
+    with pytest.raises(ValueError, match="run.devices=2 is invalid in elevens robocup train"):
+        make_robocup_config(**{"run.devices": 2})
+    with pytest.raises(ValueError, match="env.episode_length=1 is invalid"):
+        make_robocup_config(**{"env.episode_length": 1})
+    # 11 a side needs whole games in a minibatch: the error says what fits.
+    with pytest.raises(ValueError, match="multiple of 11 that divides the batch of 22"):
+        make_robocup_config(**{"env.players_per_team": 11})
+    with pytest.raises(ValueError, match="'server.port': unknown field.*server.threads"):
+        make_robocup_config(**{"server.port": 1})
+
+
+def test_the_robocup_config_is_the_simulators_learner_and_run() -> None:
+    config = RoboCupTrainConfig()
+    assert config.validate() is config
+    learner = config.learner
+    # Table 6.1's learning rate, the server's formation spawns, 200-cycle drills, one game per
+    # server and minibatch, one iteration per host step.
+    assert learner.ppo.learning_rate == 1e-4 and learner.env.game.spawn == "formation"
+    assert (learner.env.game.episode_length, learner.games_per_iteration) == (200, 2)
+    assert (learner.num_minibatches, learner.iterations_per_chunk) == (2, 1)
+    assert config.run.max_minutes == 10.0 and config.run.eval_teams == ()
+    saved = config.train_config()
+    assert (saved.preset, saved.learner, saved.run) == ("robocup", learner, config.run)
 
 
 def test_play_iteration_packs_a_rollout_like_the_compiled_one(tmp_path: Path) -> None:
-    config = small_config(tmp_path, players_per_team=2, episode_length=6)
-    trainer = make_learner(config.train_config())
+    config = small_config(tmp_path, **{"env.players_per_team": 2, "env.episode_length": 6})
+    trainer = make_learner(config.learner)
     state = trainer.init(jax.random.key(0))
     from elevens.robocup.train import make_actor
 
@@ -144,8 +175,8 @@ def test_play_iteration_packs_a_rollout_like_the_compiled_one(tmp_path: Path) ->
 def test_an_external_opponent_leaves_the_learner_on_the_left_and_its_side_unplayed(
     tmp_path: Path,
 ) -> None:
-    config = small_config(tmp_path, players_per_team=2, episode_length=4)
-    trainer = make_learner(config.train_config())
+    config = small_config(tmp_path, **{"env.players_per_team": 2, "env.episode_length": 4})
+    trainer = make_learner(config.learner)
     state = trainer.init(jax.random.key(0))
     from elevens.robocup.train import make_actor
 
@@ -162,10 +193,10 @@ def test_an_external_opponent_leaves_the_learner_on_the_left_and_its_side_unplay
 
 
 def test_config_checks_the_external_opponent() -> None:
-    with pytest.raises(ValueError, match="opponent_cmd=' '"):
-        RoboCupTrainConfig(opponent_cmd=" ")
-    with pytest.raises(ValueError, match="opponent_name='elevens_l'"):
-        RoboCupTrainConfig(opponent_cmd="x", opponent_name="elevens_l")
+    with pytest.raises(ValueError, match="server.opponent_cmd=' '"):
+        make_robocup_config(**{"server.opponent_cmd": " "})
+    with pytest.raises(ValueError, match="server.opponent_name='elevens_l'"):
+        make_robocup_config(**{"server.opponent_cmd": "x", "server.opponent_name": "elevens_l"})
 
 
 def test_train_writes_episodes_checkpoints_and_resumes(tmp_path: Path) -> None:
@@ -194,21 +225,26 @@ def test_train_writes_episodes_checkpoints_and_resumes(tmp_path: Path) -> None:
                  "train/visible_share", "env/shaping_active", "opponent/updates",
                  "robocup/restarts", "time/env_steps_per_s"):
         assert name in logged and logged[name].steps.tolist() == [1, 2], name
-    assert json.loads((run / "robocup_config.json").read_text())["servers"] == 2
+    robocup_config = json.loads((run / "robocup_config.json").read_text())
+    assert robocup_config["learner"]["games_per_iteration"] == 2
+    assert robocup_config["server"]["threads"] is False
+    assert json.loads((run / "config.json").read_text())["config_version"] == 2
     assert "robocup train 2:" in lines[-1]
     # A second run into the same directory needs --resume, and then continues.
     with pytest.raises(ValueError, match="resume"):
         train_robocup(config, env_factory=factory)
     # A resume whose networks, PPO or game sizes differ is refused with the list of differences,
     # before any server starts.
-    other = small_config(tmp_path, iterations=3, episode_length=13, learning_rate=3e-4)
+    other = small_config(
+        tmp_path, **{"run.iterations": 3, "env.episode_length": 13, "ppo.learning_rate": 3e-4}
+    )
     started = len(envs)
     with pytest.raises(RunRefusedError) as refused:
         train_robocup(other, resume=True, env_factory=factory)
     assert "env.episode_length: 12 -> 13" in str(refused.value)
     assert "ppo.learning_rate: 0.0001 -> 0.0003" in str(refused.value)
     assert len(envs) == started
-    more = small_config(tmp_path, iterations=3)
+    more = small_config(tmp_path, **{"run.iterations": 3})
     resumed = train_robocup(more, resume=True, env_factory=factory, print_fn=lines.append)
     assert resumed.iterations == 3 and resumed.episodes == 2
     assert (run / "checkpoints" / "3").is_dir()
@@ -221,7 +257,7 @@ def test_train_writes_episodes_checkpoints_and_resumes(tmp_path: Path) -> None:
 def test_every_opponent_kind_trains_in_the_server_loop(tmp_path: Path, kind: str) -> None:
     # The server loop improves through the learner's own opponent strategies: a league's
     # snapshots play their games one network per game, and its metrics are logged.
-    config = small_config(tmp_path, opponent=kind, iterations=2)
+    config = small_config(tmp_path, **{"opponent.kind": kind})
     result = train_robocup(config, env_factory=lambda i: SimEnv(1), print_fn=lambda _: None)
     assert result.iterations == 2
     logged = read_metrics_csv(tmp_path / "run")
@@ -234,6 +270,18 @@ def test_every_opponent_kind_trains_in_the_server_loop(tmp_path: Path, kind: str
     assert team.name
 
 
+def test_server_training_can_evaluate_in_the_simulator(tmp_path: Path) -> None:
+    # run.eval_teams: the policy also plays the simulator's teams (every run.eval_every
+    # iterations and at the end) and the learning curve is drawn, as in elevens train.
+    config = small_config(
+        tmp_path, **{"run.eval_teams": ("random",), "run.eval_games": 4, "run.eval_every": 1}
+    )
+    train_robocup(config, env_factory=lambda i: SimEnv(1), print_fn=lambda _: None)
+    logged = read_metrics_csv(tmp_path / "run")
+    assert logged["eval/random/outcome"].steps.tolist() == [1, 2]
+    assert (tmp_path / "run" / "learning_curve.png").stat().st_size > 0
+
+
 def test_ctrl_c_writes_a_checkpoint(tmp_path: Path) -> None:
     class Interrupting(SimEnv):
         def step(self, actions: np.ndarray) -> Any:
@@ -241,7 +289,7 @@ def test_ctrl_c_writes_a_checkpoint(tmp_path: Path) -> None:
                 raise KeyboardInterrupt
             return super().step(actions)
 
-    config = small_config(tmp_path, iterations=5)
+    config = small_config(tmp_path, **{"run.iterations": 5})
     result = train_robocup(config, env_factory=lambda i: Interrupting(1), print_fn=lambda _: None)
     assert result.interrupted and result.iterations == 0
     assert result.checkpoint is not None and result.checkpoint.is_dir()
@@ -298,7 +346,8 @@ def test_cli_train_refuses_another_runs_directory_without_a_traceback(
     before = sorted(p.name for p in (tmp_path / "checkpoints").iterdir())
     # Any executable passes the binary check; the refusal comes before a server starts.
     with pytest.raises(SystemExit) as exit_info:
-        main(["robocup", "train", "--run-dir", str(tmp_path), "--rcssserver", sys.executable])
+        main(["robocup", "train", "--run.run-dir", str(tmp_path),
+              "--server.rcssserver", sys.executable])
     assert exit_info.value.code == 2
     err = capsys.readouterr().err
     assert err.startswith("elevens robocup train: error: ") and "already holds checkpoints" in err
@@ -316,9 +365,9 @@ def test_server_bench_reports_cycles_per_second(capsys: pytest.CaptureFixture[st
 @pytest.mark.slow
 @needs_rcssserver
 def test_server_short_training_run(tmp_path: Path) -> None:
-    config = RoboCupTrainConfig(
-        players_per_team=1, servers=2, episode_length=20, iterations=2, minutes=None,
-        run_dir=str(tmp_path / "run"), rcssserver=os.environ.get("ELEVENS_RCSSSERVER"),
+    config = small_config(
+        tmp_path, **{"env.episode_length": 20, "server.threads": True,
+                     "server.rcssserver": os.environ.get("ELEVENS_RCSSSERVER")}
     )
     result = train_robocup(config, print_fn=lambda _: None)
     assert result.iterations == 2 and result.restarts == 0
@@ -330,11 +379,13 @@ def test_server_short_training_run(tmp_path: Path) -> None:
 @needs_rcssserver
 def test_server_training_against_an_external_team(tmp_path: Path) -> None:
     fake = Path(__file__).with_name("fake_team.py")
-    config = RoboCupTrainConfig(
-        players_per_team=2, servers=1, episode_length=20, iterations=2, minutes=None,
-        run_dir=str(tmp_path / "run"), rcssserver=os.environ.get("ELEVENS_RCSSSERVER"),
-        opponent_cmd=f"{sys.executable} {fake} --port {{port}} --team {{team}} --players 2",
-        opponent_name="fake",
+    config = small_config(
+        tmp_path,
+        **{"env.players_per_team": 2, "games_per_iteration": 1, "env.episode_length": 20,
+           "server.rcssserver": os.environ.get("ELEVENS_RCSSSERVER"),
+           "server.opponent_cmd":
+               f"{sys.executable} {fake} --port {{port}} --team {{team}} --players 2",
+           "server.opponent_name": "fake"},
     )
     result = train_robocup(config, print_fn=lambda _: None)
     assert result.iterations == 2 and result.restarts == 0
@@ -362,14 +413,22 @@ def test_init_from_a_checkpoint_starts_from_its_networks_and_resumes_with_them(
     # A source with a non-default network, written by hand (an init, no training).
     source_config = make_config(
         "2v2",
-        **{"env.scenario": "1v1", "ppo.batch_size": 64, "network.features": 16,
+        **{"env.players_per_team": 1, "network.features": 16,
            "network.num_heads": 2, "network.lstm_features": 8},
     )
-    source_state = make_learner(source_config).init(jax.random.key(3))
+    source_state = make_learner(source_config.learner).init(jax.random.key(3))
     with Checkpointer(tmp_path / "source" / "checkpoints") as checkpointer:
         checkpointer.save(0, source_state, source_config.to_dict(), {"iteration": 0})
+    # Its networks must be this run's: a clear refusal names the flags to pass.
+    networks = {"network.features": 16, "network.num_heads": 2, "network.lstm_features": 8}
+    with pytest.raises(RunRefusedError, match="other networks.*--network.features 16"):
+        train_robocup(small_config(tmp_path, **{"run.init_from": str(tmp_path / "source")}),
+                      env_factory=lambda i: SimEnv(1), print_fn=lambda _: None)
     # No time to play: the run saves its starting point, which must be the source's networks.
-    target = small_config(tmp_path, init_from=str(tmp_path / "source"), minutes=1e-9)
+    target = small_config(
+        tmp_path, **{"run.init_from": str(tmp_path / "source"), "run.max_minutes": 1e-9,
+                     **networks}
+    )
     result = train_robocup(target, env_factory=lambda i: SimEnv(1), print_fn=lambda _: None)
     assert result.iterations == 0
     _, expected = load_learner_params(str(tmp_path / "source"))
@@ -378,15 +437,15 @@ def test_init_from_a_checkpoint_starts_from_its_networks_and_resumes_with_them(
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     with pytest.raises(FileNotFoundError, match="nothing-here does not exist"):
         load_learner_params(str(tmp_path / "run" / "nothing-here"))
-    # Resumed without --init-from (this command has no network flags): the checkpoint's
-    # networks carry on, instead of a refusal over network.features.
+    # A resume keeps the networks (a resume ignores init_from, as elevens train does).
     resumed = train_robocup(
-        small_config(tmp_path, minutes=1e-9), resume=True, env_factory=lambda i: SimEnv(1),
-        print_fn=lambda _: None,
+        small_config(tmp_path, **{"run.max_minutes": 1e-9, **networks}), resume=True,
+        env_factory=lambda i: SimEnv(1), print_fn=lambda _: None,
     )
     assert resumed.iterations == 0 and not resumed.interrupted
     saved = json.loads((tmp_path / "run" / "config.json").read_text())
-    assert saved["network"]["features"] == 16 and saved["network"]["lstm_features"] == 8
+    assert saved["learner"]["network"]["features"] == 16
+    assert saved["learner"]["network"]["lstm_features"] == 8
 
 
 @needs_rcssserver

@@ -32,9 +32,9 @@ def checkpoint(tmp_path_factory: pytest.TempPathFactory) -> Path:
     training), at 2 v 2."""
     run = tmp_path_factory.mktemp("run")
     config = tiny_config(
-        run, **{"env.scenario": "2v2", "ppo.batch_size": 128, "ppo.minibatch_size": 32}
+        run, **{"env.players_per_team": 2, "ppo.minibatch_size": 32}
     )
-    state = make_learner(config).init(jax.random.key(11))
+    state = make_learner(config.learner).init(jax.random.key(11))
     with Checkpointer(run / "checkpoints") as checkpointer:
         checkpointer.save(0, state, config.to_dict(), {"iteration": 0})
     return run
@@ -44,7 +44,7 @@ def test_an_exported_team_holds_its_checkpoints_networks(
     checkpoint: Path, tmp_path: Path
 ) -> None:
     folder, config = export_team(str(checkpoint), tmp_path / "team", card="# card\n")
-    assert config.env.scenario == "2v2"
+    assert config.learner.env.scenario == "2v2"
     assert (folder / "MODEL_CARD.md").read_text() == "# card\n"
     # Plain arrays, readable without pickle.
     with np.load(folder / NETWORKS_FILE, allow_pickle=False) as archive:

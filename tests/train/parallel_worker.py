@@ -23,7 +23,7 @@ import numpy as np
 from elevens.train.config import TrainConfig, make_config
 
 TINY = {
-    "env.scenario": "1v1",
+    "env.players_per_team": 1,
     "env.episode_length": 16,
     "env.field_length": 30.0,
     "env.field_width": 21.0,
@@ -32,12 +32,11 @@ TINY = {
     "network.num_heads": 2,
     "network.lstm_features": 8,
     "network.lstm_layers": 1,
-    "run.games_per_iteration": 8,
-    "ppo.batch_size": 8,
+    "games_per_iteration": 8,
     "ppo.minibatch_size": 4,  # 2 minibatches of 4 games: 2 games a device
     "ppo.epochs": 2,
     "ppo.learning_rate": 3e-3,
-    "run.iterations_per_chunk": 1,
+    "iterations_per_chunk": 1,
 }
 
 
@@ -51,7 +50,7 @@ def devices_mode(out: str) -> None:
 
     arrays: dict[str, np.ndarray] = {}
     for devices in (1, 2):
-        trainer = make_learner(make_config("quickstart", **TINY, **{"run.devices": devices}))
+        trainer = make_learner(make_config("quickstart", **TINY).learner, devices=devices)
         state = trainer.init(jax.random.key(0))
         state, metrics = trainer.update_chunk(state)
         arrays.update(flat(state.params, f"{devices}/params"))

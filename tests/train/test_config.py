@@ -1,49 +1,70 @@
-"""TrainConfig: presets, dotted overrides, validation errors before anything compiles, JSON."""
+"""TrainConfig: presets, overrides named as flags, validation errors before anything compiles,
+JSON with config_version 2, and version-1 files read field by field."""
 
 from __future__ import annotations
 
 import dataclasses
 import json
 import time
+from pathlib import Path
 
 import pytest
 
+from elevens.env.params import EnvParams
 from elevens.train.config import (
+    CONFIG_VERSION,
     OPPONENT_KINDS,
     PRESETS,
     EnvConfig,
+    LearnerConfig,
     TrainConfig,
     config_differences,
+    config_paths,
     load_config,
     make_config,
+    migrate_v1,
     mix_schedule,
     scenario_config,
     validate,
 )
 from elevens.train.ppo import PPOHyperparams
+from tests.train.version_1 import as_version_1
+
+ROOT = Path(__file__).resolve().parents[2]
+COMMITTED_CONFIGS = sorted(
+    [
+        *ROOT.glob("src/elevens/teams/trained/*/config.json"),
+        *ROOT.glob("docs/results/**/config.json"),
+    ]
+)
 
 
 @pytest.mark.parametrize("preset", sorted(PRESETS))
 def test_presets_are_valid_and_consistent(preset: str) -> None:
     config = make_config(preset)
+    learner = config.learner
     assert config.preset == preset
-    assert config.ppo.batch_size == config.run.games_per_iteration * config.players_per_team
-    assert config.units_per_iteration % config.ppo.minibatch_size == 0
+    assert learner.batch_size == learner.games_per_iteration * learner.players_per_team
+    assert learner.batch_size % learner.ppo.minibatch_size == 0
+    assert learner.num_minibatches == learner.batch_size // learner.ppo.minibatch_size
 
 
 def test_thesis_presets_use_table_6_1() -> None:
     for preset in ("2v2", "11v11"):
-        config = make_config(preset)
-        assert isinstance(config.ppo, PPOHyperparams)  # the ppo.py class, not a copy
-        assert config.ppo.epochs == 5 and config.ppo.clip_epsilon == 0.1
-        assert config.ppo.value_weight == 0.5
-        assert config.env.episode_length == 400
-        assert config.network.features == 64 and config.network.lstm_features == 32
-    # 11 a side: table 6.1 exactly, whole games in a minibatch, 5 games = 55 sequences.
-    assert make_config("11v11").ppo == PPOHyperparams(minibatch_size=55)
-    assert make_config("11v11").opponent.kind == "polyak"
-    assert make_config("11v11").players_per_team == 11
-    assert make_config("2v2").env.spawn == "random"
+        learner = make_config(preset).learner
+        assert isinstance(learner.ppo, PPOHyperparams)  # the ppo.py class, not a copy
+        assert learner.ppo.epochs == 5 and learner.ppo.clip_epsilon == 0.1
+        assert learner.ppo.value_weight == 0.5
+        assert learner.env.game.episode_length == 400
+        assert learner.network.features == 64 and learner.network.lstm_features == 32
+    # 11 a side: table 6.1 exactly: a batch of 660 sequences (60 games x 11), whole games in a
+    # minibatch, 5 games = 55 sequences, 12 minibatches.
+    eleven = make_config("11v11").learner
+    assert eleven.ppo == PPOHyperparams(minibatch_size=55)
+    assert (eleven.batch_size, eleven.num_minibatches) == (660, 12)
+    assert eleven.opponent.kind == "polyak"
+    assert eleven.players_per_team == 11 and eleven.env.scenario == "11v11"
+    assert make_config("2v2").learner.env.game.spawn == "random"
 
 
 def test_2v2_preset_documents_how_to_get_table_6_1_back() -> None:
@@ -56,20 +77,18 @@ def test_2v2_preset_documents_how_to_get_table_6_1_back() -> None:
             "ppo.advantage_estimator": "monte_carlo",
             "ppo.gamma": 0.999,
             "ppo.normalize_advantages": False,
-            "ppo.batch_size": 660,
             "ppo.minibatch_size": 60,
-            "run.games_per_iteration": 330,
+            "games_per_iteration": 330,
             "opponent.polyak_tau": 0.01,
             "env.shaping_schedule": True,
             "ppo.entropy_weight": 0.01,
         },
     )
-    assert table.ppo == PPOHyperparams()
-    assert table.env == EnvConfig(
-        scenario="2v2", spawn="random", episode_length=400
-    )
-    assert table.opponent == make_config("11v11").opponent
-    tuned = make_config("2v2")
+    assert table.learner.ppo == PPOHyperparams()
+    assert table.learner.batch_size == 660
+    assert table.learner.env == EnvConfig(game=EnvParams(players_per_team=2, spawn="random"))
+    assert table.learner.opponent == make_config("11v11").learner.opponent
+    tuned = make_config("2v2").learner
     assert tuned.ppo.advantage_estimator == "gae" and tuned.ppo.normalize_advantages
     assert tuned.opponent.kind == "polyak" and tuned.opponent.polyak_tau == 0.05
     assert tuned.ppo.entropy_weight == 1e-3
@@ -77,18 +96,51 @@ def test_2v2_preset_documents_how_to_get_table_6_1_back() -> None:
 
 def test_dotted_and_double_underscore_overrides() -> None:
     config = make_config(
-        "2v2", **{"ppo.learning_rate": 3e-4, "run.iterations": 7}, opponent__kind="league"
+        "2v2",
+        **{"ppo.learning_rate": 3e-4, "run.iterations": 7, "env.kick_impulse": 5.0},
+        opponent__kind="league", games_per_iteration=32,
     )
-    assert config.ppo.learning_rate == 3e-4
+    learner = config.learner
+    assert learner.ppo.learning_rate == 3e-4
     assert config.run.iterations == 7
-    assert config.opponent.kind == "league"
+    assert learner.opponent.kind == "league"
+    assert learner.env.game.kick_impulse == 5.0  # any EnvParams field, not only a copied few
+    assert (learner.games_per_iteration, learner.batch_size) == (32, 64)
     # Untouched fields keep the preset's values.
-    assert config.ppo.epochs == 5 and config.env.scenario == "2v2"
+    assert learner.ppo.epochs == 5 and learner.env.scenario == "2v2"
+    assert learner.env.game.goal_width == EnvParams().goal_width
+
+
+def test_overrides_of_one_group_apply_together() -> None:
+    # goal_width may exceed the old field_width: the group is rebuilt once, then checked.
+    config = make_config("quickstart", **{"env.goal_width": 30.0, "env.field_width": 40.0})
+    assert (config.learner.env.game.goal_width, config.learner.env.game.field_width) == (30, 40)
+
+
+def test_every_env_params_field_is_an_override_and_a_flag() -> None:
+    import tyro
+
+    from elevens.cli.train import TrainArgs
+
+    paths = config_paths(make_config("quickstart"))
+    for field in dataclasses.fields(EnvParams):
+        assert paths[f"env.{field.name}"] == f"learner.env.game.{field.name}"
+    args = tyro.cli(
+        TrainArgs, args=["quickstart", "--env.wall-restitution", "0.3",
+                         "--env.players-per-team", "3", "--games-per-iteration", "8",
+                         "--ppo.minibatch-size", "12"],
+    )
+    learner = args.config.learner
+    assert learner.env.game.wall_restitution == 0.3 and learner.env.scenario == "3v3"
+    assert learner.batch_size == 24 and learner.num_minibatches == 2
 
 
 def test_whole_group_override() -> None:
-    env = dataclasses.replace(make_config("quickstart").env, episode_length=50)
-    assert make_config("quickstart", env=env).env.episode_length == 50
+    base = make_config("quickstart").learner
+    env = dataclasses.replace(base.env, game=base.env.game.replace(episode_length=50))
+    assert make_config("quickstart", env=env).learner.env.game.episode_length == 50
+    learner = dataclasses.replace(base, games_per_iteration=32)
+    assert make_config("quickstart", learner=learner).learner.batch_size == 32
 
 
 @pytest.mark.parametrize(
@@ -97,10 +149,10 @@ def test_whole_group_override() -> None:
         ({"ppo.learning_rate": -1e-4}, ["ppo.learning_rate", "> 0"]),
         ({"ppo.learning_rate": 0.0}, ["ppo.learning_rate", "> 0"]),
         ({"ppo.learning_rate": float("nan")}, ["ppo.learning_rate"]),
-        ({"ppo.minibatch_size": 1000}, ["ppo.minibatch_size=1000", "larger", "batch_size"]),
+        ({"ppo.minibatch_size": 1000}, ["ppo.minibatch_size=1000", "divide", "64 x 1"]),
         ({"ppo.minibatch_size": 7}, ["minibatch_size=7", "divide"]),
         (
-            {"env.scenario": "2v2", "run.games_per_iteration": 32, "ppo.minibatch_size": 1},
+            {"env.players_per_team": 2, "games_per_iteration": 32, "ppo.minibatch_size": 1},
             ["ppo.minibatch_size=1", "multiple of 2", "whole games", "2, 4"],
         ),
         ({"ppo.epochs": 0}, ["ppo.epochs"]),
@@ -109,18 +161,21 @@ def test_whole_group_override() -> None:
         ({"opponent.kind": "zoo"}, ["opponent.kind='zoo'", "polyak", "self", "league"]),
         ({"opponent.polyak_tau": 0.0}, ["opponent.polyak_tau"]),
         ({"opponent.freeze_threshold": 2.0}, ["opponent.freeze_threshold"]),
-        ({"env.scenario": "2v3"}, ["env.scenario", "NvN"]),
-        ({"env.scenario": "12v12"}, ["env.scenario", "1 to 11"]),
-        ({"env.spawn": "corner"}, ["env.spawn", "formation", "random"]),
-        ({"env.episode_length": 0}, ["env.episode_length", ">= 1"]),
-        ({"env.goal_width": 80.0}, ["env.goal_width", "field_width"]),
+        ({"env.scenario": "2v3"}, ["env.scenario", "renamed", "env.players_per_team"]),
+        ({"ppo.batch_size": 64}, ["ppo.batch_size", "renamed", "games_per_iteration x players"]),
+        ({"run.games_per_iteration": 64}, ["renamed", "use games_per_iteration"]),
+        ({"env.players_per_team": 12}, ["env: players_per_team=12", "1 to 11"]),
+        ({"env.spawn": "corner"}, ["env: spawn='corner'", "formation", "random"]),
+        ({"env.episode_length": 0}, ["env: episode_length=0"]),
+        ({"env.goal_width": 80.0}, ["env: goal_width=80.0", "field_width"]),
+        ({"env.kick_impulse": -1.0}, ["env: kick_impulse=-1.0", ">= 0"]),
         ({"env.shaping_threshold": -0.1}, ["env.shaping_threshold"]),
         ({"network.num_heads": 3}, ["network.num_heads", "divide", "features"]),
         ({"network.features": 0}, ["network.features"]),
-        ({"run.games_per_iteration": 0}, ["run.games_per_iteration"]),
-        ({"run.games_per_iteration": 10}, ["ppo.batch_size", "run.games_per_iteration"]),
+        ({"games_per_iteration": 0}, ["games_per_iteration"]),
+        ({"games_per_iteration": 10}, ["ppo.minibatch_size=16", "10 x 1"]),
         ({"run.eval_teams": ("random", "random")}, ["run.eval_teams", "naive", "teamwork"]),
-        ({"run.iterations_per_chunk": 0}, ["run.iterations_per_chunk"]),
+        ({"iterations_per_chunk": 0}, ["iterations_per_chunk"]),
         ({"run.seed": 1.5}, ["run.seed"]),
         ({"run.max_minutes": -5.0}, ["run.max_minutes=-5.0", ">= 0"]),
         ({"run.max_minutes": float("inf")}, ["run.max_minutes=inf", "finite"]),
@@ -130,7 +185,7 @@ def test_whole_group_override() -> None:
         ({"env.mix": ("1v1",), "env.mix_shares": (0.5,)}, ["env.mix=('1v1',)", "differ"]),
         ({"env.mix": ("2v3",), "env.mix_shares": (0.5,)}, ["env.mix", "NvN"]),
         ({"env.mix": ("3v3",), "env.mix_shares": (0.5,)},
-         ["ppo.batch_size=64", "multiples of 3"]),
+         ["batch of 64 player sequences", "multiples of 3"]),
         ({"env.mix": ("2v2",), "env.mix_shares": (0.5,), "opponent.kind": "league"},
          ["opponent.kind='league'", "'polyak' or 'self'"]),
         ({"env.mix": ("2v2",), "env.mix_shares": (0.5,), "network.use_attention": False},
@@ -152,21 +207,26 @@ def test_unknown_preset_lists_the_allowed_ones() -> None:
 
 
 def test_unknown_field_or_group_lists_the_allowed_ones() -> None:
-    with pytest.raises(ValueError, match="run has no field 'iters'.*iterations"):
+    with pytest.raises(ValueError, match="'run.iters': unknown field.*run.iterations"):
         make_config("quickstart", **{"run.iters": 3})
-    with pytest.raises(ValueError, match="unknown config group 'optim'.*ppo"):
+    with pytest.raises(ValueError, match="'optim.lr': unknown field.*ppo.epochs"):
         make_config("quickstart", **{"optim.lr": 3})
+
+
+def _with_learner(config: TrainConfig, **fields: object) -> TrainConfig:
+    return dataclasses.replace(config, learner=dataclasses.replace(config.learner, **fields))
 
 
 def test_validate_catches_a_config_built_by_hand() -> None:
     config = make_config("quickstart")
-    bad_ppo = dataclasses.replace(config.ppo)
+    bad_ppo = dataclasses.replace(config.learner.ppo)
     object.__setattr__(bad_ppo, "learning_rate", -1.0)  # past PPOHyperparams' own check
     with pytest.raises(ValueError, match="ppo.learning_rate=-1.0"):
-        validate(dataclasses.replace(config, ppo=bad_ppo))
-    bad_env = EnvConfig(scenario="eleven")
-    with pytest.raises(ValueError, match="env.scenario='eleven'"):
-        dataclasses.replace(config, env=bad_env).validate()
+        validate(_with_learner(config, ppo=bad_ppo))
+    with pytest.raises(ValueError, match="env.game must be an EnvParams"):
+        _with_learner(config, env=EnvConfig(game="eleven")).validate()  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="learner must be a LearnerConfig"):
+        dataclasses.replace(config, learner=config.run).validate()  # type: ignore[arg-type]
 
 
 def test_validation_is_fast_and_compiles_nothing() -> None:
@@ -175,30 +235,32 @@ def test_validation_is_fast_and_compiles_nothing() -> None:
     from elevens.train.learner import make_learner
 
     config = make_config("11v11")
-    bad_ppo = dataclasses.replace(config.ppo)
+    bad_ppo = dataclasses.replace(config.learner.ppo)
     object.__setattr__(bad_ppo, "learning_rate", -1.0)  # past PPOHyperparams' own check
-    bad = dataclasses.replace(config, ppo=bad_ppo)
+    bad = _with_learner(config, ppo=bad_ppo)
     start = time.perf_counter()
     with pytest.raises(ValueError, match="learning_rate"):
-        make_learner(bad)
+        make_learner(bad.learner)
     assert time.perf_counter() - start < 0.5
 
 
 def test_every_opponent_kind_is_accepted() -> None:
     for kind in OPPONENT_KINDS:
-        assert make_config("quickstart", **{"opponent.kind": kind}).opponent.kind == kind
+        config = make_config("quickstart", **{"opponent.kind": kind})
+        assert config.learner.opponent.kind == kind
 
 
 @pytest.mark.parametrize("preset", sorted(PRESETS))
 def test_json_round_trip(preset: str, tmp_path) -> None:
     config = make_config(preset, **{"run.eval_teams": ("naive",), "ppo.entropy_weight": 0})
     text = config.to_json()
-    json.loads(text)  # plain JSON
+    assert json.loads(text)["config_version"] == CONFIG_VERSION == 2  # plain JSON
     again = TrainConfig.from_json(text)
     assert again == config
     assert isinstance(again.run.eval_teams, tuple)
-    assert isinstance(again.ppo, PPOHyperparams)
-    assert isinstance(again.ppo.entropy_weight, float)  # an int in JSON is still a float field
+    assert isinstance(again.learner.ppo, PPOHyperparams)
+    assert isinstance(again.learner.env.game, EnvParams)
+    assert isinstance(again.learner.ppo.entropy_weight, float)  # an int in JSON: a float field
     path = tmp_path / "config.json"
     path.write_text(text)
     assert load_config(path) == config
@@ -206,16 +268,16 @@ def test_json_round_trip(preset: str, tmp_path) -> None:
 
 def test_from_dict_fills_fields_an_older_version_did_not_save() -> None:
     data = make_config("quickstart").to_dict()
-    del data["opponent"]["league_window"]
+    del data["learner"]["opponent"]["league_window"]
     del data["run"]["eval_games"]
     with pytest.warns(UserWarning, match="older version") as caught:
         config = TrainConfig.from_dict(data, fill_missing=True)
     message = str(caught[0].message)
-    assert "opponent.league_window" in message and "run.eval_games" in message
+    assert "learner.opponent.league_window" in message and "run.eval_games" in message
     defaults = TrainConfig()
-    assert config.opponent.league_window == defaults.opponent.league_window
+    assert config.learner.opponent.league_window == defaults.learner.opponent.league_window
     assert config.run.eval_games == defaults.run.eval_games
-    assert config.ppo == make_config("quickstart").ppo  # what was saved is kept
+    assert config.learner.ppo == make_config("quickstart").learner.ppo  # the saved values
     data["run"]["colour"] = "blue"  # still an error: a typo, or a newer version's field
     with pytest.raises(ValueError, match=r"unknown keys \['colour'\].*newer version"):
         TrainConfig.from_dict(data, fill_missing=True)
@@ -227,9 +289,54 @@ def test_from_dict_rejects_unknown_and_missing_keys() -> None:
     with pytest.raises(ValueError, match=r"config\.run.*unknown keys \['colour'\]"):
         TrainConfig.from_dict(data)
     data = make_config("quickstart").to_dict()
-    del data["ppo"]["gamma"]
-    with pytest.raises(ValueError, match=r"config\.ppo.*missing keys \['gamma'\]"):
+    del data["learner"]["ppo"]["gamma"]
+    with pytest.raises(ValueError, match=r"config\.learner\.ppo.*missing keys \['gamma'\]"):
         TrainConfig.from_dict(data)
+    for version in (3, "2", None):
+        data = {**make_config("quickstart").to_dict(), "config_version": version}
+        with pytest.raises(ValueError, match=f"config_version={version!r} is not readable"):
+            TrainConfig.from_dict(data, fill_missing=True)
+    # A version-1 dict is read only as an older version's file (fill_missing).
+    with pytest.raises(ValueError, match="config_version=1 is not readable"):
+        TrainConfig.from_dict(as_version_1(make_config("quickstart")))
+
+
+@pytest.mark.parametrize("preset", sorted(PRESETS))
+def test_a_version_1_config_reads_back_field_by_field(preset: str) -> None:
+    config = make_config(preset, **{"run.seed": 5, "opponent.mix": ("naive=0.25",)}
+                         if preset == "quickstart" else {"run.seed": 5})
+    assert TrainConfig.from_saved(as_version_1(config), "old.json") == config
+    migrated = migrate_v1(as_version_1(config))
+    assert migrated["config_version"] == 2 and "batch_size" not in migrated["learner"]["ppo"]
+    # A batch that is not games x players cannot be expressed any more: a clear error.
+    bad = as_version_1(config)
+    bad["ppo"]["batch_size"] += 1
+    with pytest.raises(ValueError, match=r"old.json.*ppo.batch_size=.*games_per_iteration x"):
+        TrainConfig.from_saved(bad, "old.json")
+    bad = as_version_1(config)
+    bad["env"]["scenario"] = "2v3"
+    with pytest.raises(ValueError, match="old.json.*env.scenario='2v3'"):
+        TrainConfig.from_saved(bad, "old.json")
+
+
+def test_a_version_1_config_without_spawn_keeps_its_old_default() -> None:
+    # Version 1's EnvConfig spawned at random by default; EnvParams' default is formation.
+    old = as_version_1(make_config("2v2"))
+    del old["env"]["spawn"]
+    config = TrainConfig.from_saved(old, "old.json")
+    assert config.learner.env.game.spawn == "random"
+
+
+@pytest.mark.parametrize("path", COMMITTED_CONFIGS, ids=lambda p: str(p.relative_to(ROOT)))
+def test_every_committed_config_loads(path: Path) -> None:
+    # Shipped teams and the results' exported teams were saved as version 1.
+    config = load_config(path).validate()
+    assert isinstance(config.learner, LearnerConfig)
+    saved = json.loads(path.read_text())
+    if "config_version" not in saved:
+        assert config.learner.env.scenario == saved["env"]["scenario"]
+        assert config.learner.batch_size == saved["ppo"]["batch_size"]
+        assert config.learner.games_per_iteration == saved["run"]["games_per_iteration"]
 
 
 def test_config_differences_ignore_host_loop_fields() -> None:
@@ -245,6 +352,11 @@ def test_config_differences_ignore_host_loop_fields() -> None:
     assert len(differences) == 2
     assert any(d.startswith("ppo.learning_rate: 0.001 -> 0.0005") for d in differences)
     assert any(d.startswith("run.seed: 0 -> 3") for d in differences)
+    # K changes no result; the games an iteration do. Names are the flags'.
+    assert config_differences(saved, make_config("quickstart", iterations_per_chunk=7)) == []
+    assert config_differences(saved, make_config("quickstart", **{"env.kick_impulse": 3.0})) == [
+        "env.kick_impulse: 4.0 -> 3.0"
+    ]
 
 
 def test_cli_args_parse_a_preset_with_flag_overrides() -> None:
@@ -260,9 +372,9 @@ def test_cli_args_parse_a_preset_with_flag_overrides() -> None:
     )
     assert args.resume and args.progress
     assert args.config.preset == "2v2"
-    assert args.config.ppo.learning_rate == 3e-4
-    assert args.config.ppo.epochs == 5  # the preset's value where no flag is given
-    assert args.config.opponent.kind == "league"
+    assert args.config.learner.ppo.learning_rate == 3e-4
+    assert args.config.learner.ppo.epochs == 5  # the preset's value where no flag is given
+    assert args.config.learner.opponent.kind == "league"
     assert args.config.run.run_dir == "runs/x"
     # The command's own flags may follow the preset too (moved in front before tyro parses).
     after = tyro.cli(
@@ -289,25 +401,27 @@ def test_cli_train_validates_before_compiling(capsys: pytest.CaptureFixture[str]
     assert "learning_rate=-0.1 is invalid" in capsys.readouterr().err
     # A value only the whole config can judge is refused by validate() in train_command, also
     # as a usage error (no traceback).
-    args = tyro.cli(TrainArgs, args=["11v11", "--run.games-per-iteration", "7"])
+    args = tyro.cli(TrainArgs, args=["11v11", "--games-per-iteration", "7"])
     with pytest.raises(SystemExit) as exit_info:
         train_command(args)
     assert exit_info.value.code == 2
-    assert "elevens train: error: ppo.batch_size=660 is invalid" in capsys.readouterr().err
+    assert "elevens train: error: ppo.minibatch_size=55 is invalid" in capsys.readouterr().err
     assert time.perf_counter() - start < 0.5
 
 
 def test_a_mixed_run_shares_its_chunks_between_sizes_by_a_fixed_schedule() -> None:
     config = make_config("11v11", **{
         "env.mix": ("2v2", "5v5"), "env.mix_shares": (0.5, 0.25),
-        "run.games_per_iteration": 20, "ppo.batch_size": 220, "ppo.minibatch_size": 110,
+        "games_per_iteration": 20, "ppo.minibatch_size": 110,
     })
-    schedule = mix_schedule(config, 400)
+    learner = config.learner
+    schedule = mix_schedule(learner, 400)
     assert schedule[:8] == ["2v2", "11v11", "5v5", "2v2", "2v2", "11v11", "5v5", "2v2"]
     assert [schedule.count(game) for game in ("2v2", "5v5", "11v11")] == [200, 100, 100]
-    assert mix_schedule(config, 7) == schedule[:7]  # a resumed run follows the same one
-    two = scenario_config(config, "2v2")
-    assert (two.env.scenario, two.run.games_per_iteration, two.env.mix) == ("2v2", 110, ())
-    assert two.ppo == config.ppo and two.validate() is two
-    # Without a mix, every chunk plays the scenario.
-    assert set(mix_schedule(make_config("2v2"), 5)) == {"2v2"}
+    assert mix_schedule(learner, 7) == schedule[:7]  # a resumed run follows the same one
+    two = scenario_config(learner, "2v2")
+    assert (two.env.scenario, two.games_per_iteration, two.env.mix) == ("2v2", 110, ())
+    assert two.batch_size == learner.batch_size == 220
+    assert two.ppo == learner.ppo and two.validate() is two
+    # Without a mix, every chunk plays the main game.
+    assert set(mix_schedule(make_config("2v2").learner, 5)) == {"2v2"}

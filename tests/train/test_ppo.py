@@ -293,10 +293,11 @@ def test_hyperparams_defaults_and_validation() -> None:
     hp = PPOHyperparams()
     assert (hp.gamma, hp.learning_rate, hp.epochs, hp.clip_epsilon) == (0.999, 1e-4, 5, 0.1)
     assert (hp.value_weight, hp.policy_weight, hp.entropy_weight) == (0.5, 1.0, 0.01)
-    assert (hp.batch_size, hp.minibatch_size, hp.num_minibatches) == (660, 60, 11)
+    assert hp.minibatch_size == 60  # table 6.1; its batch of 660 is games x players
+    assert not hasattr(hp, "batch_size")
     assert hp.advantage_estimator == "monte_carlo" and not hp.normalize_advantages
-    with pytest.raises(ValueError, match="minibatch_size=70 does not divide batch_size=660"):
-        PPOHyperparams(minibatch_size=70)
+    with pytest.raises(ValueError, match="minibatch_size=0 is invalid: it must be >= 1"):
+        PPOHyperparams(minibatch_size=0)
     for bad in (0.0, -1e-4, float("nan")):
         with pytest.raises(ValueError, match=f"learning_rate={bad!r} is invalid"):
             PPOHyperparams(learning_rate=bad)

@@ -30,6 +30,7 @@ from elevens.train.checkpoint import TREE_FILE, Checkpointer
 from elevens.train.config import TrainConfig, make_config, validate
 from elevens.train.learner import Learner, TrainState, make_learner
 from tests.train.test_checkpoint import files_under
+from tests.train.version_1 import as_version_1
 
 BASE = {
     # 1 v 1 on a 30 x 21 field (goal 14 wide), 64-step episodes, 64 games an iteration, a small
@@ -39,7 +40,7 @@ BASE = {
     # the ball and push it forward within a few iterations, and a random player rarely scores on
     # this field, so the outcome against random rises from about 0.5 (mostly goalless draws) to
     # about 0.8 in 40 iterations (0.80 to 0.84 over seeds 0 to 4), a few seconds of training.
-    "env.scenario": "1v1",
+    "env.players_per_team": 1,
     "env.episode_length": 64,
     "env.field_length": 30.0,
     "env.field_width": 21.0,
@@ -51,11 +52,10 @@ BASE = {
     "network.lstm_features": 8,
     "network.lstm_layers": 1,
     "ppo.learning_rate": 3e-3,
-    "ppo.batch_size": 64,
     "ppo.minibatch_size": 16,
     "ppo.gamma": 0.98,
-    "run.games_per_iteration": 64,
-    "run.iterations_per_chunk": 2,
+    "games_per_iteration": 64,
+    "iterations_per_chunk": 2,
     "run.eval_games": 100,
     "run.eval_teams": ("random",),
     "run.write_gif": False,
@@ -72,7 +72,7 @@ def uncached_trainer(config: TrainConfig) -> Learner:
     """A trainer built past make_learner's small cache, so that tests which only trace, or which
     patch module constants, do not evict the compiled trainers the other tests share."""
     validate(config)
-    return learner_module._build_learner.__wrapped__(config, None)
+    return learner_module._build_learner.__wrapped__(config.learner, None, config.run.devices)
 
 
 def leaves_equal(a: Any, b: Any) -> bool:
@@ -99,7 +99,7 @@ def leaves_equal(a: Any, b: Any) -> bool:
 
 def test_update_chunk_runs_compiles_once_and_is_deterministic() -> None:
     config = tiny_config()
-    trainer = make_learner(config)
+    trainer = make_learner(config.learner)
     state = trainer.init(jax.random.key(0))
     first, metrics = trainer.update_chunk(state)
     second, _ = trainer.update_chunk(first)
@@ -107,7 +107,7 @@ def test_update_chunk_runs_compiles_once_and_is_deterministic() -> None:
     assert trainer.update_chunk._cache_size() == 1  # type: ignore[attr-defined]
     assert int(first.iteration) == 2 and int(second.iteration) == 4
     assert int(second.env_steps) == 4 * GAMES * STEPS
-    k = config.run.iterations_per_chunk
+    k = config.learner.iterations_per_chunk
     for name in (
         "train/policy_loss", "train/value_loss", "train/entropy", "train/approx_kl",
         "train/clip_fraction", "train/explained_variance", "train/mean_score",
@@ -125,14 +125,16 @@ def test_update_chunk_runs_compiles_once_and_is_deterministic() -> None:
     assert leaves_equal(trainer.init(jax.random.key(0)), state)
     assert not leaves_equal(trainer.init(jax.random.key(1)).params, state.params)
     # A rebuilt trainer for a run differing only in host-loop fields reuses the compiled chunk.
-    other = make_learner(tiny_config("elsewhere", **{"run.iterations": 9}))
+    other = make_learner(tiny_config("elsewhere", **{"run.iterations": 9}).learner)
     assert other.update_chunk is trainer.update_chunk
 
 
 def test_configs_with_the_same_networks_share_their_initialisation() -> None:
     config = tiny_config()
-    trainer = make_learner(config)
-    other = make_learner(tiny_config(**{"ppo.learning_rate": 1e-3, "opponent.kind": "self"}))
+    trainer = make_learner(config.learner)
+    other = make_learner(
+        tiny_config(**{"ppo.learning_rate": 1e-3, "opponent.kind": "self"}).learner
+    )
     assert other is not trainer
     state, other_state = trainer.init(jax.random.key(4)), other.init(jax.random.key(4))
     assert leaves_equal(state.params, other_state.params)
@@ -161,15 +163,15 @@ def test_compacted_update_equals_the_dense_update(monkeypatch: pytest.MonkeyPatc
         "quickstart",
         **{
             **BASE,
-            "env.scenario": "4v4",
+            "env.players_per_team": 4,
             "env.episode_length": 8,
-            "run.games_per_iteration": 4,
-            "ppo.batch_size": 16,
+            "games_per_iteration": 4,
             "ppo.minibatch_size": 8,
             "ppo.epochs": 2,
         },
     )
-    assert capacity_module.compacts(config.network.use_attention, config.env.players_per_team)
+    learner = config.learner
+    assert capacity_module.compacts(learner.network.use_attention, learner.players_per_team)
     updates = []
     for fractions in ((), (1.0,), (0.05,)):
         monkeypatch.setattr(capacity_module, "VISIBLE_FRACTIONS", fractions)
@@ -191,7 +193,7 @@ def test_compacted_update_equals_the_dense_update(monkeypatch: pytest.MonkeyPatc
 
 
 def test_polyak_freeze_rule_follows_the_mean_score() -> None:
-    trainer = make_learner(tiny_config())
+    trainer = make_learner(tiny_config().learner)
     state = trainer.init(jax.random.key(0))
     new_state, metrics = trainer.update_chunk(state)
     frozen = np.asarray(metrics["opponent/frozen"]) == 1.0
@@ -227,15 +229,14 @@ def test_variants_trace(overrides: dict) -> None:
 
 
 def test_squashed_entropy_bonus_is_the_action_entropy_estimate() -> None:
-    gaussian = make_learner(tiny_config(**{"run.games_per_iteration": 16, "ppo.batch_size": 16}))
+    gaussian = make_learner(tiny_config(**{"games_per_iteration": 16}).learner)
     squashed = make_learner(
         tiny_config(
             **{
-                "run.games_per_iteration": 16,
-                "ppo.batch_size": 16,
+                "games_per_iteration": 16,
                 "ppo.entropy_estimator": "squashed",
             }
-        )
+        ).learner
     )
     state = gaussian.init(jax.random.key(0))
     data = jax.jit(gaussian.collect)(state, jax.random.key(1))
@@ -257,7 +258,7 @@ def test_league_opponents_run() -> None:
     overrides: dict[str, Any] = {
         "opponent.kind": "league", "opponent.league_every": 2, "opponent.league_capacity": 3
     }
-    league = make_learner(tiny_config(**overrides))
+    league = make_learner(tiny_config(**overrides).learner)
     state = league.init(jax.random.key(0))
     assert state.opponent.league is not None and int(state.opponent.league.size) == 1
     state, metrics = league.update_chunk(state)  # iterations 1, 2: a snapshot joins after 2
@@ -281,7 +282,7 @@ def test_league_opponents_run() -> None:
 
 @pytest.mark.slow
 def test_self_play_copies_the_learner() -> None:
-    self_play = make_learner(tiny_config(**{"opponent.kind": "self"}))
+    self_play = make_learner(tiny_config(**{"opponent.kind": "self"}).learner)
     state = self_play.init(jax.random.key(0))
     state, _ = self_play.update_chunk(state)
     assert state.opponent.polyak is not None
@@ -334,7 +335,10 @@ def test_resume_refuses_another_config_and_fresh_runs_refuse_old_dirs(
     before = files_under(checkpoints)
     with pytest.raises(RunRefusedError, match="resume=True"):
         train(config, progress=False)
-    changed = dataclasses.replace(config, ppo=dataclasses.replace(config.ppo, learning_rate=0.5))
+    changed = make_config(
+        "quickstart", **{**BASE, "run.run_dir": str(tmp_path), "run.iterations": 2,
+                        "run.eval_every": 0, "ppo.learning_rate": 0.5}
+    )
     with pytest.raises(RunRefusedError, match=r"ppo.learning_rate: 0.003 -> 0.5"):
         train(changed, resume=True, progress=False)
     # The command reports both as usage errors, without a traceback.
@@ -350,14 +354,15 @@ def test_resume_refuses_another_config_and_fresh_runs_refuse_old_dirs(
         assert error.startswith("elevens train: error: ") and message in error
         assert "Traceback" not in error
     assert files_under(checkpoints) == before
-    # A checkpoint of an older version, which had no opponent.league_window, still resumes.
+    # A checkpoint of config version 1 (before LearnerConfig/RunConfig), and of a version that
+    # had no opponent.league_window yet, still resumes.
     for saved in checkpoints.rglob("config.json"):
-        old = json.loads(saved.read_text())
+        old = as_version_1(TrainConfig.from_json(saved.read_text()))
         del old["opponent"]["league_window"]
         saved.write_text(json.dumps(old))
     # (One more chunk of K = 2: the compiled chunk serves it.)
     longer = dataclasses.replace(config, run=dataclasses.replace(config.run, iterations=4))
-    with pytest.warns(UserWarning, match="opponent.league_window"):
+    with pytest.warns(UserWarning, match="learner.opponent.league_window"):
         assert train(longer, resume=True, progress=False).iteration == 4
     # A damaged checkpoint: exit code 2, the message names the file, nothing is deleted. (The
     # list of leaves is damaged: it is read before Orbax's, whose damaged reads test_checkpoint
@@ -459,9 +464,9 @@ def test_time_budget_ends_the_run_like_a_finished_one_and_resume_extends_it(
 def test_a_run_starts_from_another_team_sizes_networks(tmp_path: Path) -> None:
     # A 2 v 2 source with this file's networks, written by hand (an init and a save).
     source_config = tiny_config(
-        **{"env.scenario": "2v2", "ppo.batch_size": 128, "ppo.minibatch_size": 32}
+        **{"env.players_per_team": 2, "ppo.minibatch_size": 32}
     )
-    source_state = make_learner(source_config).init(jax.random.key(7))
+    source_state = make_learner(source_config.learner).init(jax.random.key(7))
     source = source_state.params
     with Checkpointer(tmp_path / "source" / CHECKPOINT_DIR) as checkpointer:
         checkpointer.save(0, source_state, source_config.to_dict(), {"iteration": 0})
@@ -469,9 +474,9 @@ def test_a_run_starts_from_another_team_sizes_networks(tmp_path: Path) -> None:
     config = tiny_config(tmp_path / "run", **{
         "run.init_from": str(tmp_path / "source"), "run.iterations": 2, "run.eval_every": 0,
     })
-    fresh = make_learner(config).init(jax.random.key(0))
+    fresh = make_learner(config.learner).init(jax.random.key(0))
     assert not leaves_equal(fresh.params, source)  # the seeds differ: a real test
-    started = make_learner(config).init(jax.random.key(0), resume_module.load_start_params(
+    started = make_learner(config.learner).init(jax.random.key(0), resume_module.load_start_params(
         config.run.init_from, config)[1])
     assert leaves_equal(started.params, source)
     assert leaves_equal(started.opponent.polyak.params, source.policy)
@@ -569,11 +574,11 @@ LEARNING_ITERATIONS = 40
 
 
 def test_short_run_learns_to_beat_the_random_team() -> None:
-    trainer = make_learner(tiny_config())
+    trainer = make_learner(tiny_config().learner)
     state = trainer.init(jax.random.key(0))
     eval_key = jax.random.key(123)
     before = evaluate(trainer, state, eval_key)["eval/random/outcome"]
-    for _ in range(LEARNING_ITERATIONS // trainer.config.run.iterations_per_chunk):
+    for _ in range(LEARNING_ITERATIONS // trainer.config.iterations_per_chunk):
         state, metrics = trainer.update_chunk(state)
     after = evaluate(trainer, state, eval_key)["eval/random/outcome"]
     assert 0.35 < before < 0.65, before
@@ -586,7 +591,7 @@ def test_the_11v11_preset_runs_end_to_end(tmp_path: Path) -> None:
     # The full game: the update compacts the visible slots (4 or more players a side) and
     # evaluates, checkpoints, plots and draws its GIF as a real run does; short episodes.
     config = make_config("11v11", **{
-        "env.episode_length": 16, "run.games_per_iteration": 5, "ppo.batch_size": 55,
+        "env.episode_length": 16, "games_per_iteration": 5,
         "run.iterations": 2, "run.eval_every": 2, "run.eval_games": 2,
         "run.checkpoint_every": 2, "run.run_dir": str(tmp_path),
     })

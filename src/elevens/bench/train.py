@@ -177,16 +177,14 @@ def bench_train(
     config = make_config(
         "11v11" if players == 11 else "2v2",
         **{
-            "env.scenario": f"{players}v{players}",
+            "env.players_per_team": players,
             "env.episode_length": episode_length,
-            "run.games_per_iteration": games,
-            "run.iterations_per_chunk": 1,
-            "ppo.batch_size": units,
+            "games_per_iteration": games,
+            "iterations_per_chunk": 1,
             "ppo.minibatch_size": minibatch,
-            "run.devices": devices,
         },
     )
-    trainer = make_learner(config)
+    trainer = make_learner(config.learner, devices=devices)
     state = trainer.init(jax.random.key(0))
 
     def full() -> Any:
@@ -200,7 +198,7 @@ def bench_train(
         players=players,
         games=games,
         episode_length=episode_length,
-        epochs=config.ppo.epochs,
+        epochs=config.learner.ppo.epochs,
         minibatch_size=minibatch,
         steps_per_s=games * episode_length / iteration_s,
         iteration_s=iteration_s,

@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import io
 import os
+import re
 import signal
 import sys
 from dataclasses import dataclass
@@ -119,7 +120,7 @@ def export_team(args: ExportTeamArgs) -> Path:
 
     card = None if args.card is None else args.card.read_text(encoding="utf-8")
     folder, config = export(args.team, args.out, card)
-    print(f"wrote {folder} ({config.env.scenario}, {config.preset} preset)")
+    print(f"wrote {folder} ({config.learner.env.scenario}, {config.preset} preset)")
     return folder
 
 
@@ -225,7 +226,19 @@ def _tyro_message(box: str) -> str:
             continue
         lines.append(line)
     message = " ".join(lines).replace("__tyro-dummy-inner__.config.", "")
+    # A group's own check (EnvParams, PPOHyperparams) is named as its flags are: "env", "ppo".
+    message = re.sub(
+        r"Error parsing ((?:learner\.)?[\w.]+):",
+        lambda match: f"{_flag_group(match.group(1))}:",
+        message,
+    )
     return message + " (--help lists the options)"
+
+
+def _flag_group(path: str) -> str:
+    from elevens.train.config import short_path
+
+    return short_path(f"{path}.x").rpartition(".")[0]
 
 
 def _expected_errors() -> tuple[type[BaseException], ...]:

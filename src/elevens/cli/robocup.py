@@ -9,10 +9,14 @@ from __future__ import annotations
 import json as json_lib
 import sys
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
+from typing import Annotated
+
+import tyro
 
 from elevens.cli.checks import EXIT_INTERRUPTED, Commands, exit_with_error
 from elevens.robocup.server import find_rcssserver
+from elevens.robocup.train import RoboCupTrainConfig
 
 
 @dataclass(frozen=True)
@@ -56,45 +60,14 @@ class RoboCupPlayArgs:
 
 @dataclass(frozen=True)
 class RoboCupTrainArgs:
-    """Train with the same PPO in rcssserver: N server processes feed the compiled learner."""
+    """Train with the same PPO in rcssserver: one server process per game of an iteration feeds
+    the compiled learner. The flags are elevens train's (--env.*, --network.*, --ppo.*,
+    --opponent.*, --games-per-iteration, --run.*) and the server's (--server.*)."""
 
-    players: int = 2
-    """Players per team, 1..11."""
-    servers: int = 2
-    """Server processes = games per iteration."""
-    steps: int = 200
-    """Steps (server cycles) per episode."""
-    minutes: float | None = 10.0
-    """Stop after this many minutes (None: only --iterations)."""
-    iterations: int = 1000
-    """Stop after this many iterations."""
-    opponent: str = "polyak"
-    """'polyak' (frozen while the learner is not ahead), 'self' or 'league'."""
-    opponent_cmd: str | None = None
-    """Learn against another team's binaries: its start command with {host}, {port},
-    {coach_port} and {team} filled in, e.g. "HELIOS/start.sh -p {port} -P {coach_port} -t
-    {team}" (then --opponent is not used)."""
-    opponent_name: str = "opponent"
-    """The external opponent's team name."""
-    shaping: bool = True
-    """Add the simulator's ball and approach shaping to the goal reward (--no-shaping: goals
-    only)."""
-    learning_rate: float = 1e-4
-    """Adam's learning rate (table 6.1)."""
-    keep_ball_in_play: bool = True
-    """Put the ball back at the lines (the thesis did this in its shaping phase)."""
-    init_from: str | None = None
-    """Start from a simulator checkpoint (transfer), e.g. runs/2v2."""
-    run_dir: str = "runs/robocup"
-    """Where metrics, episodes.csv and checkpoints go."""
+    config: Annotated[RoboCupTrainConfig, tyro.conf.arg(name="")] = RoboCupTrainConfig()
+    """The run: the simulator's learner and host loop, and the servers."""
     resume: bool = False
-    """Continue the latest checkpoint of --run-dir."""
-    checkpoint_every: int = 5
-    """Iterations between checkpoints."""
-    seed: int = 0
-    """Seeds the networks and spawns."""
-    rcssserver: str | None = None
-    """The server binary (default: $ELEVENS_RCSSSERVER, then PATH)."""
+    """Continue the latest checkpoint of --run.run-dir (its config must match)."""
 
 
 @dataclass(frozen=True)
@@ -230,19 +203,16 @@ def play(args: RoboCupPlayArgs) -> None:
 
 
 def train(args: RoboCupTrainArgs) -> None:
-    from elevens.robocup.train import RoboCupTrainConfig, train_robocup
+    from elevens.robocup.train import train_robocup
     from elevens.runs.errors import RunRefusedError
     from elevens.train.checkpoint import CheckpointError
 
-    binary = find_rcssserver(args.rcssserver)
-    config = RoboCupTrainConfig(
-        players_per_team=args.players, servers=args.servers, episode_length=args.steps,
-        iterations=args.iterations, minutes=args.minutes, keep_ball_in_play=args.keep_ball_in_play,
-        opponent=args.opponent, learning_rate=args.learning_rate, init_from=args.init_from,
-        run_dir=args.run_dir, rcssserver=binary, checkpoint_every=args.checkpoint_every,
-        seed=args.seed, opponent_cmd=args.opponent_cmd, opponent_name=args.opponent_name,
-        shaping=args.shaping,
-    )
+    try:  # a bad config is refused before the server binary is looked for
+        args.config.validate()
+    except ValueError as error:
+        exit_with_error("elevens robocup train: error", error, 2)
+    server = replace(args.config.server, rcssserver=find_rcssserver(args.config.server.rcssserver))
+    config = replace(args.config, server=server)
     try:
         result = train_robocup(config, resume=args.resume)
     except RunRefusedError as error:  # another run's checkpoints in --run-dir

@@ -86,7 +86,9 @@ class EnvParams:
 
     # --- bodies ---
     player_radius: float = 1.0
+    """Players are discs of this radius."""
     ball_radius: float = 1.0
+    """The ball is a disc of this radius."""
     leg_reach: float = 3.0
     """Leg bar half length beyond the centre (reach to each side)."""
 
@@ -104,6 +106,7 @@ class EnvParams:
     kick_band: float = 1.0
     """A kick needs the ball centre within this distance of the leg line."""
     ball_max_speed: float = 5.0
+    """Ball speeds are capped at this (per step)."""
     ball_friction: float = 0.9
     """Velocity multiplier per step."""
     ball_stop_speed: float = 0.01
@@ -127,6 +130,7 @@ class EnvParams:
 
     # --- rewards ---
     goal_reward: float = 1.0
+    """Reward for a goal (its negative for the team that concedes)."""
     ball_shaping_weight: float = 0.1
     """w_b: weight of the ball's velocity towards the opponent goal (0 switches it off)."""
     approach_shaping_weight: float = 0.05

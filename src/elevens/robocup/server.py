@@ -52,7 +52,7 @@ INSTALL_HINT = (
     "  git clone https://github.com/rcsoccersim/rcssserver && cd rcssserver\n"
     "  cmake -B build && cmake --build build && sudo cmake --install build\n"
     f"then put `rcssserver` on PATH, set {ENV_VAR}=/path/to/rcssserver, or pass the path "
-    "explicitly (e.g. --rcssserver)."
+    "explicitly (--rcssserver; --server.rcssserver for elevens robocup train)."
 )
 
 #: Server options for training (rcssserver 19.0.0 names, each checked against the

@@ -27,7 +27,7 @@ import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import jax
 import jax.numpy as jnp
@@ -36,8 +36,14 @@ import numpy as np
 from elevens.env.state import GlobalState, Observation
 from elevens.play import NetworkActor, home_sides
 from elevens.runs.layout import RunLayout
-from elevens.train.config import TrainConfig, make_config
-from elevens.train.opponents import OPPONENT_KINDS
+from elevens.train.config import (
+    LearnerConfig,
+    RunConfig,
+    TrainConfig,
+    apply_overrides,
+    make_config,
+    validate,
+)
 from elevens.train.rollout import Rollout, Transition
 
 log = logging.getLogger(__name__)
@@ -52,94 +58,126 @@ slipped, so a lockstep run shows server_cycles <= steps with small, explained ga
 
 
 @dataclasses.dataclass(frozen=True)
-class RoboCupTrainConfig:
-    """A training run in rcssserver. Network and PPO numbers come from ``base`` (a TrainConfig
-    preset, by default the simulator's 2v2 preset: table 6.1 and 6.2)."""
+class ServerConfig:
+    """What only a run in rcssserver has: the servers' rules, binary and threads, and an
+    external opponent. One server process plays each game of an iteration
+    (``games_per_iteration`` servers)."""
 
-    players_per_team: int = 2
-    """Players a side (1 to 11)."""
-    servers: int = 2
-    """Server processes = games per iteration (one episode each)."""
-    episode_length: int = 200
-    """Steps (server cycles) per episode."""
-    iterations: int = 1000
-    """Stop after this many iterations..."""
-    minutes: float | None = 10.0
-    """...or after this many minutes of wall-clock (None: no limit)."""
     keep_ball_in_play: bool = True
     """Put the ball back at the lines instead of kick-ins (the thesis did this while shaping)."""
-    opponent: str = "polyak"
-    """"polyak" (freeze rule of section 5.2.6), "self" (plain self-play) or "league" (past
-    snapshots by win rate, section 5.2.7): the simulator's opponent strategies."""
-    learning_rate: float = 1e-4
-    """Adam's learning rate (table 6.1)."""
-    init_from: str | None = None
-    """A simulator checkpoint (run, checkpoints or step directory) whose policy and critic start
-    the run: the thesis' transfer from the fast simulator to the server."""
-    run_dir: str = "runs/robocup"
-    """Where metrics.csv, episodes.csv, TensorBoard events and checkpoints go."""
     rcssserver: str | None = None
     """The server binary (default: $ELEVENS_RCSSSERVER, then PATH)."""
-    checkpoint_every: int = 5
-    """Iterations between checkpoints (and always at the end or on Ctrl-C)."""
-    seed: int = 0
-    """Seeds the networks and the spawns (the server's own noise is not seedable)."""
     threads: bool = True
     """Step the games' servers from a thread pool, so one server simulates while Python parses
     another's messages."""
     opponent_cmd: str | None = None
-    """Learn against another team's binaries instead of a copy of the learner: its start
-    command, with {host}, {port}, {coach_port} and {team} filled in (elevens.robocup.external),
-    started beside every server. The learner then always plays the left side."""
+    """Learn against another team's binaries instead of ``opponent.kind``: its start command,
+    with {host}, {port}, {coach_port} and {team} filled in (elevens.robocup.external), started
+    beside every server, e.g. "HELIOS/start.sh -p {port} -P {coach_port} -t {team}". The
+    learner then always plays the left side."""
     opponent_name: str = "opponent"
     """The external opponent's team name."""
-    shaping: bool = True
-    """Add the simulator's shaping terms (ball and approach) to the goal reward. Off: goals
-    only (at 11 v 11 the approach term outweighs the goals; docs/results/table_6_3.md)."""
 
     def __post_init__(self) -> None:
-        checks = (
-            ("players_per_team", 1 <= self.players_per_team <= 11, "an int from 1 to 11"),
-            ("servers", self.servers >= 1, "an int >= 1"),
-            ("episode_length", self.episode_length >= 2, "an int >= 2"),
-            ("iterations", self.iterations >= 1, "an int >= 1"),
-            ("minutes", self.minutes is None or self.minutes > 0, "None or > 0"),
-            ("opponent", self.opponent in OPPONENT_KINDS, " or ".join(map(repr, OPPONENT_KINDS))),
-            ("learning_rate", self.learning_rate > 0, "> 0"),
-            ("checkpoint_every", self.checkpoint_every >= 1, "an int >= 1"),
-            (
-                "opponent_cmd",
-                self.opponent_cmd is None or bool(self.opponent_cmd.strip()),
-                "None or a start command",
-            ),
-            (
-                "opponent_name",
-                self.opponent_name not in ("", "elevens_l"),
-                "a team name other than elevens_l",
-            ),
-        )
-        for name, ok, allowed in checks:
-            if not ok:
-                raise ValueError(f"{name}={getattr(self, name)!r} is invalid: it must be {allowed}")
+        if self.opponent_cmd is not None and not self.opponent_cmd.strip():
+            raise ValueError(
+                f"server.opponent_cmd={self.opponent_cmd!r} is invalid: it must be None or a "
+                "start command"
+            )
+        if self.opponent_name in ("", "elevens_l"):
+            raise ValueError(
+                f"server.opponent_name={self.opponent_name!r} is invalid: it must be a team "
+                "name other than elevens_l"
+            )
+
+
+def _robocup_learner() -> LearnerConfig:
+    # The simulator's 2v2 learner with table 6.1's learning rate, 200-cycle drills, one game
+    # (server) per minibatch and one iteration per step of the host loop.
+    learner = make_config("2v2").learner
+    return dataclasses.replace(
+        learner,
+        env=dataclasses.replace(
+            learner.env,
+            game=dataclasses.replace(learner.env.game, episode_length=200, spawn="formation"),
+        ),
+        ppo=dataclasses.replace(learner.ppo, learning_rate=1e-4, minibatch_size=2),
+        games_per_iteration=2,
+        iterations_per_chunk=1,
+    )
+
+
+ROBOCUP_RUN = RunConfig(
+    iterations=1000,
+    max_minutes=10.0,
+    eval_teams=(),
+    checkpoint_every=5,
+    run_dir="runs/robocup",
+    write_plot=True,
+    write_gif=False,
+)
+"""The host loop's defaults in rcssserver: 10 minutes, no evaluation in the simulator (give
+``run.eval_teams`` to track the policy there), a checkpoint every 5 iterations."""
+
+
+@dataclasses.dataclass(frozen=True)
+class RoboCupTrainConfig:
+    """A training run in rcssserver: the simulator's learner and host-loop configs (the same
+    flags as ``elevens train``) plus the server's."""
+
+    learner: LearnerConfig = dataclasses.field(default_factory=_robocup_learner)
+    """What is computed: the game (``env.players_per_team``, ``env.episode_length`` in server
+    cycles, the shaping weights), networks, PPO, opponent; ``games_per_iteration`` servers."""
+    run: RunConfig = ROBOCUP_RUN
+    """Length (iterations, max_minutes), checkpoints, seed, init_from (a simulator checkpoint or
+    team: the thesis' transfer), run directory; evaluation in the simulator with eval_teams."""
+    server: ServerConfig = ServerConfig()
+    """The servers and an external opponent."""
+
+    def validate(self) -> RoboCupTrainConfig:
+        """``elevens.train.config.validate`` on the learner and run, and the run fields this
+        loop cannot honour; raises ``ValueError`` naming the field."""
+        validate(self.train_config())
+        if self.run.devices not in (0, 1):
+            raise ValueError(
+                f"run.devices={self.run.devices!r} is invalid in elevens robocup train: the "
+                "games play on the host and the update on one device; use 0 or 1"
+            )
+        if self.learner.env.game.episode_length < 2:
+            raise ValueError(
+                f"env.episode_length={self.learner.env.game.episode_length!r} is invalid in "
+                "elevens robocup train: it must be at least 2 server cycles"
+            )
+        return self
 
     def train_config(self) -> TrainConfig:
-        """The simulator TrainConfig whose networks, PPO and compiled ``learn`` this run uses."""
-        n = self.players_per_team
-        return make_config(
-            "2v2",
-            **{
-                "env.scenario": f"{n}v{n}",
-                "env.episode_length": self.episode_length,
-                "opponent.kind": self.opponent,
-                "ppo.learning_rate": self.learning_rate,
-                "ppo.batch_size": self.servers * n,
-                "ppo.minibatch_size": n,
-                "run.games_per_iteration": self.servers,
-                "run.iterations_per_chunk": 1,
-                "run.run_dir": self.run_dir,
-                "run.seed": self.seed,
-            },
+        """The TrainConfig saved with every checkpoint (a resume compares it)."""
+        return TrainConfig(preset="robocup", learner=self.learner, run=self.run)
+
+
+def make_robocup_config(**overrides: Any) -> RoboCupTrainConfig:
+    """The default ``RoboCupTrainConfig`` with fields replaced by their flags' names, as
+    ``elevens.train.config.make_config`` names them (``env.players_per_team``,
+    ``games_per_iteration``, ``run.iterations``, ...) plus ``server.NAME``; validated."""
+    base = RoboCupTrainConfig()
+    names = {raw.replace("__", "."): value for raw, value in overrides.items()}
+    server = {name: value for name, value in names.items() if name.startswith("server.")}
+    rest = {name: value for name, value in names.items() if name not in server}
+    allowed = [field.name for field in dataclasses.fields(ServerConfig)]
+    unknown = [name for name in server if name.partition(".")[2] not in allowed]
+    if unknown:
+        raise ValueError(
+            f"override {unknown[0]!r}: unknown field; allowed server fields are "
+            f"{', '.join('server.' + name for name in allowed)}"
         )
+    train = apply_overrides(base.train_config(), rest)
+    return RoboCupTrainConfig(
+        learner=train.learner,
+        run=train.run,
+        server=dataclasses.replace(
+            base.server, **{name.partition(".")[2]: value for name, value in server.items()}
+        ),
+    ).validate()
 
 
 @dataclasses.dataclass
@@ -161,19 +199,25 @@ EnvFactory = Callable[[int], Any]
 def _default_env_factory(config: RoboCupTrainConfig) -> EnvFactory:
     from elevens.robocup.env import RoboCupConfig, RoboCupEnv
 
+    game, server = config.learner.env.game, config.server
+
     def make(index: int) -> Any:
         return RoboCupEnv(
             RoboCupConfig(
-                players_per_team=config.players_per_team,
+                players_per_team=game.players_per_team,
                 # The loop ends episodes itself; the env's own limit only has to lie beyond.
-                episode_length=config.episode_length + 1,
-                keep_ball_in_play=config.keep_ball_in_play,
+                episode_length=game.episode_length + 1,
+                spawn=game.spawn,
+                ball_spawn=game.ball_spawn,
+                keep_ball_in_play=server.keep_ball_in_play,
+                goal_reward=game.goal_reward,
+                ball_shaping_weight=game.ball_shaping_weight,
+                approach_shaping_weight=game.approach_shaping_weight,
                 action="sim",
-                rcssserver=config.rcssserver,
-                opponent_cmd=config.opponent_cmd,
-                shaping=config.shaping,
+                rcssserver=server.rcssserver,
+                opponent_cmd=server.opponent_cmd,
                 team_names=(
-                    "elevens_l", config.opponent_name if config.opponent_cmd else "elevens_r"
+                    "elevens_l", server.opponent_name if server.opponent_cmd else "elevens_r"
                 ),
             )
         )
@@ -367,16 +411,6 @@ def play_iteration(
     return rollout, logs
 
 
-def _with_saved_network(checkpointer: Any, train_config: TrainConfig) -> TrainConfig:
-    """``train_config`` with the network config of the latest checkpoint (unchanged when that
-    config cannot be read; ``check_resumable`` then says why)."""
-    try:
-        saved = TrainConfig.from_dict(checkpointer.read_config(), fill_missing=True)
-    except (TypeError, ValueError):
-        return train_config
-    return dataclasses.replace(train_config, network=saved.network).validate()
-
-
 def train_robocup(
     config: RoboCupTrainConfig,
     *,
@@ -386,14 +420,16 @@ def train_robocup(
 ) -> RoboCupTrainResult:
     """Run ``config``: iterations of G server games and the learner's ``improve`` (advantages,
     PPO epochs, opponent strategy, shaping schedule: the simulator's, compiled), until
-    ``iterations`` or ``minutes``. Ctrl-C writes a checkpoint and stops cleanly; ``resume``
-    continues the latest checkpoint of ``run_dir``."""
-    from elevens.runs.logging import RunLogger
+    ``run.iterations`` or ``run.max_minutes``. Ctrl-C writes a checkpoint and stops cleanly;
+    ``resume`` continues the latest checkpoint of ``run.run_dir``. With ``run.eval_teams`` the
+    policy is also evaluated in the simulator (every ``run.eval_every`` iterations and at the
+    end) and the learning curve drawn, as ``elevens train`` does."""
     from elevens.train.checkpoint import Checkpointer
 
     began = time.perf_counter()
-    layout = RunLayout.of(config.run_dir)
-    checkpointer = Checkpointer(layout.checkpoints, max_to_keep=3)
+    config.validate()
+    layout = RunLayout.of(config.run.run_dir)
+    checkpointer = Checkpointer(layout.checkpoints, max_to_keep=config.run.keep_checkpoints)
     try:
         learner, state, resumed = _open_robocup_run(config, checkpointer, resume)
     except BaseException:
@@ -401,149 +437,235 @@ def train_robocup(
         checkpointer.close()
         raise
     layout.root.mkdir(parents=True, exist_ok=True)
-    layout.config.write_text(learner.config.to_json(), encoding="utf-8")
+    layout.config.write_text(config.train_config().to_json(), encoding="utf-8")
     layout.robocup_config.write_text(
         json.dumps(dataclasses.asdict(config), indent=2), encoding="utf-8"
     )
-    improve = jax.jit(learner.improve)
-    act = make_actor(learner.policy)
-    # A league plays one snapshot per game; one shared opponent acts like the learner.
-    opponent_act = make_actor(learner.policy, per_game=True) if learner.opponent.per_game else act
-    factory = env_factory or _default_env_factory(config)
-    logger = RunLogger(layout.root, resumed_at=int(state.iteration) if resumed else None)
-    new_file = not layout.episodes_csv.exists()
-    episodes_file = layout.episodes_csv.open("a", newline="", encoding="utf-8")
-    episodes_csv = csv.writer(episodes_file)
-    if new_file:
-        episodes_csv.writerow(EPISODE_FIELDS)
-    deadline = None if config.minutes is None else began + 60.0 * config.minutes
-    iteration = start_iteration = int(state.iteration)
-    last_saved = iteration if resumed else None
-    envs: list[Any] = []
-    pool = ThreadPoolExecutor(config.servers) if config.threads and config.servers > 1 else None
-    interrupted = False
-    episodes = restarts = 0
-    steps = config.servers * config.episode_length
-
-    def save(current: Any) -> Path:
-        nonlocal last_saved
-        it = int(current.iteration)
-        if last_saved == it:
-            return checkpointer.step_directory(it)
-        last_saved = it
-        return checkpointer.save(
-            it, current, learner.config.to_dict(),
-            {"iteration": it, "env_steps": it * steps, "robocup": True},
-        )
-
-    checkpoint: Path | None = None
+    loop = _RoboCupLoop(config, layout, checkpointer, learner, state, resumed, print_fn, began)
     try:
-        envs = [factory(g) for g in range(config.servers)]
-        while iteration < config.iterations:
-            if deadline is not None and time.perf_counter() >= deadline:
-                break
-            iteration_began = time.perf_counter()
-            key, rollout_key, shuffle_key, opponent_key = jax.random.split(state.key, 4)
-            data, logs = play_iteration(
-                envs, act, learner.policy, state.params.policy,
-                learner.opponent.act_params(state.opponent), rollout_key,
-                episode_length=config.episode_length,
-                shaping_active=bool(state.shaping.active),
-                seed=config.seed * 1_000_003 + iteration * config.servers,
-                pool=pool,
-                external_opponent=config.opponent_cmd is not None,
-                opponent_act=opponent_act,
-            )
-            played = time.perf_counter()
-            shaping_was_active = bool(state.shaping.active)
-            state, learner_metrics = improve(
-                state.replace(key=key), data, shuffle_key, opponent_key
-            )
-            iteration += 1
-            if shaping_was_active and not bool(state.shaping.active):
-                log.info("shaping switched off after iteration %d", iteration)
-                print_fn(f"robocup train: reward shaping switched off at iteration {iteration}")
-            now = time.perf_counter()
-            for g, game in enumerate(logs):
-                episodes_csv.writerow(
-                    (iteration, g, int(data.learner_side[g]), game.goals_for, game.goals_against,
-                     config.episode_length, game.server_cycles, game.restarts, game.missed,
-                     game.malformed,
-                     game.ball_returned, f"{now - began:.1f}")
-                )
-                restarts += game.restarts
-            episodes += len(logs)
-            episodes_file.flush()
-            # The simulator learner's metrics, then what only this loop knows.
-            metrics = {name: float(value) for name, value in learner_metrics.items()}
-            metrics |= {
-                "robocup/restarts": float(sum(game.restarts for game in logs)),
-                "robocup/missed": float(sum(game.missed for game in logs)),
-                "robocup/malformed": float(sum(game.malformed for game in logs)),
-                "time/play_steps_per_s": steps / max(played - iteration_began, 1e-9),
-                "time/env_steps_per_s": steps / max(now - iteration_began, 1e-9),
-                "time/env_steps": float(iteration * steps),
-            }
-            logger.log(iteration, metrics)
-            print_fn(
-                f"robocup train {iteration}: score {metrics['train/mean_score']:.2f} goals "
-                f"{metrics['train/goals_for']:.2f}-{metrics['train/goals_against']:.2f} | "
-                f"{metrics['time/env_steps_per_s']:.0f} env steps/s "
-                f"(play {metrics['time/play_steps_per_s']:.0f}) | restarts {restarts}"
-            )
-            if iteration % config.checkpoint_every == 0:
-                checkpoint = save(state)
-    except KeyboardInterrupt:
-        interrupted = True
-        print_fn("robocup train: interrupted, writing a checkpoint")
+        loop.run(env_factory or _default_env_factory(config))
     finally:
-        if iteration > start_iteration or not resumed:
-            checkpoint = save(state)
-        checkpointer.close()
-        logger.close()
-        episodes_file.close()
-        if pool is not None:
-            pool.shutdown(wait=True)
-        for env in envs:
-            env.close()
+        loop.close()
     return RoboCupTrainResult(
-        iterations=iteration,
-        env_steps=iteration * steps,
-        episodes=episodes,
-        restarts=restarts,
+        iterations=loop.iteration,
+        env_steps=loop.iteration * loop.steps,
+        episodes=loop.episodes,
+        restarts=loop.restarts,
         wall_s=time.perf_counter() - began,
-        interrupted=interrupted,
-        checkpoint=checkpoint,
+        interrupted=loop.interrupted,
+        checkpoint=loop.checkpoint,
         run_dir=layout.root,
     )
+
+
+class _RoboCupLoop:
+    """An open server run: the iterations (play on the servers, improve, log, checkpoint,
+    evaluate), then the final checkpoint and pictures."""
+
+    def __init__(
+        self, config: RoboCupTrainConfig, layout: RunLayout, checkpointer: Any, learner: Any,
+        state: Any, resumed: bool, print_fn: Callable[[str], None], began: float,
+    ) -> None:
+        from elevens.runs.logging import RunLogger
+
+        self.config, self.layout, self.checkpointer = config, layout, checkpointer
+        self.learner, self.state, self.resumed = learner, state, resumed
+        self.print_fn, self.began = print_fn, began
+        self.improve = jax.jit(learner.improve)
+        self.act = make_actor(learner.policy)
+        # A league plays one snapshot per game; one shared opponent acts like the learner.
+        self.opponent_act = (
+            make_actor(learner.policy, per_game=True) if learner.opponent.per_game else self.act
+        )
+        self.logger = RunLogger(layout.root, resumed_at=int(state.iteration) if resumed else None)
+        self.episodes_csv = _EpisodesCsv(layout.episodes_csv)
+        self.evaluations = _SimulatorEvaluation(learner, config.run, self.logger)
+        self.games = config.learner.games_per_iteration
+        self.steps = self.games * config.learner.env.game.episode_length
+        self.iteration = self.start_iteration = int(state.iteration)
+        self.last_saved = self.iteration if resumed else None
+        self.episodes = self.restarts = 0
+        self.interrupted = False
+        self.checkpoint: Path | None = None
+
+    def run(self, factory: EnvFactory) -> None:
+        run = self.config.run
+        deadline = self.began + 60.0 * run.max_minutes if run.max_minutes > 0 else None
+        threads = self.config.server.threads and self.games > 1
+        pool = ThreadPoolExecutor(self.games) if threads else None
+        envs: list[Any] = []
+        try:
+            envs = [factory(g) for g in range(self.games)]
+            while self.iteration < run.iterations:
+                if deadline is not None and time.perf_counter() >= deadline:
+                    break
+                self.step(envs, pool)
+                if run.checkpoint_every and self.iteration % run.checkpoint_every == 0:
+                    self.checkpoint = self.save()
+                if run.eval_every and self.iteration % run.eval_every == 0:
+                    self.evaluations.evaluate(self.state)
+        except KeyboardInterrupt:
+            self.interrupted = True
+            self.print_fn("robocup train: interrupted, writing a checkpoint")
+        finally:
+            if self.iteration > self.start_iteration or not self.resumed:
+                self.checkpoint = self.save()
+            self.checkpointer.close()
+            if pool is not None:
+                pool.shutdown(wait=True)
+            for env in envs:
+                env.close()
+        if not self.interrupted:
+            self.evaluations.finish(self.state, self.layout, self.config.train_config())
+
+    def step(self, envs: list[Any], pool: ThreadPoolExecutor | None) -> None:
+        """One iteration: an episode on every server, then ``improve``, then its logs."""
+        learner, state, game = self.learner, self.state, self.config.learner.env.game
+        began = time.perf_counter()
+        key, rollout_key, shuffle_key, opponent_key = jax.random.split(state.key, 4)
+        data, logs = play_iteration(
+            envs, self.act, learner.policy, state.params.policy,
+            learner.opponent.act_params(state.opponent), rollout_key,
+            episode_length=game.episode_length,
+            shaping_active=bool(state.shaping.active),
+            seed=self.config.run.seed * 1_000_003 + self.iteration * self.games,
+            pool=pool,
+            external_opponent=self.config.server.opponent_cmd is not None,
+            opponent_act=self.opponent_act,
+        )
+        played = time.perf_counter()
+        self.state, learner_metrics = self.improve(
+            state.replace(key=key), data, shuffle_key, opponent_key
+        )
+        self.iteration += 1
+        if bool(state.shaping.active) and not bool(self.state.shaping.active):
+            log.info("shaping switched off after iteration %d", self.iteration)
+            self.print_fn(
+                f"robocup train: reward shaping switched off at iteration {self.iteration}"
+            )
+        now = time.perf_counter()
+        self.episodes_csv.write(
+            self.iteration, data.learner_side, logs, game.episode_length, now - self.began
+        )
+        self.restarts += sum(game_log.restarts for game_log in logs)
+        self.episodes += len(logs)
+        # The simulator learner's metrics, then what only this loop knows.
+        metrics = {name: float(value) for name, value in learner_metrics.items()}
+        metrics |= {
+            "robocup/restarts": float(sum(game_log.restarts for game_log in logs)),
+            "robocup/missed": float(sum(game_log.missed for game_log in logs)),
+            "robocup/malformed": float(sum(game_log.malformed for game_log in logs)),
+            "time/play_steps_per_s": self.steps / max(played - began, 1e-9),
+            "time/env_steps_per_s": self.steps / max(now - began, 1e-9),
+            "time/env_steps": float(self.iteration * self.steps),
+        }
+        self.logger.log(self.iteration, metrics)
+        self.print_fn(
+            f"robocup train {self.iteration}: score {metrics['train/mean_score']:.2f} goals "
+            f"{metrics['train/goals_for']:.2f}-{metrics['train/goals_against']:.2f} | "
+            f"{metrics['time/env_steps_per_s']:.0f} env steps/s "
+            f"(play {metrics['time/play_steps_per_s']:.0f}) | restarts {self.restarts}"
+        )
+
+    def save(self) -> Path:
+        it = int(self.state.iteration)
+        if self.last_saved == it:
+            return cast(Path, self.checkpointer.step_directory(it))
+        self.last_saved = it
+        return cast(Path, self.checkpointer.save(
+            it, self.state, self.config.train_config().to_dict(),
+            {"iteration": it, "env_steps": it * self.steps, "robocup": True},
+        ))
+
+    def close(self) -> None:
+        self.logger.close()
+        self.episodes_csv.close()
+
+
+class _EpisodesCsv:
+    """episodes.csv (``EPISODE_FIELDS``): one row per server game, appended across resumes."""
+
+    def __init__(self, path: Path) -> None:
+        new_file = not path.exists()
+        self.file = path.open("a", newline="", encoding="utf-8")
+        self.writer = csv.writer(self.file)
+        if new_file:
+            self.writer.writerow(EPISODE_FIELDS)
+
+    def write(
+        self, iteration: int, learner_sides: Any, logs: Sequence[Any], episode_length: int,
+        wall_s: float,
+    ) -> None:
+        for g, game in enumerate(logs):
+            self.writer.writerow(
+                (iteration, g, int(learner_sides[g]), game.goals_for, game.goals_against,
+                 episode_length, game.server_cycles, game.restarts, game.missed, game.malformed,
+                 game.ball_returned, f"{wall_s:.1f}")
+            )
+        self.file.flush()
+
+    def close(self) -> None:
+        self.file.close()
+
+
+class _SimulatorEvaluation:
+    """``run.eval_teams`` games in the simulator (``elevens.runs.loop.evaluate``), logged like
+    ``elevens train``'s, and the pictures at the end (curve with an evaluation, GIF)."""
+
+    def __init__(self, learner: Any, run: RunConfig, logger: Any) -> None:
+        self.learner, self.run, self.logger = learner, run, logger
+        self.key = jax.random.key(run.seed + 1)
+        self.evaluated_at: int | None = None
+
+    def evaluate(self, state: Any) -> None:
+        from elevens.runs.loop import evaluate
+
+        if not self.run.eval_teams:
+            return
+        it = int(state.iteration)
+        results = evaluate(self.learner, state, jax.random.fold_in(self.key, it), self.run)
+        self.logger.log(it, results)
+        self.evaluated_at = it
+
+    def finish(self, state: Any, layout: RunLayout, config: TrainConfig) -> None:
+        from elevens.runs.pictures import write_gif, write_learning_curve
+
+        if self.evaluated_at != int(state.iteration):
+            self.evaluate(state)
+        self.logger.flush()
+        if self.run.write_plot and self.run.eval_teams:
+            title = f"{config.learner.env.scenario} in rcssserver, seed {self.run.seed}"
+            write_learning_curve(layout.root, layout.learning_curve, title=title)
+        if self.run.write_gif:
+            write_gif(
+                self.learner, state, layout.gif, seed=self.run.seed,
+                deterministic=self.run.eval_deterministic,
+            )
 
 
 def _open_robocup_run(
     config: RoboCupTrainConfig, checkpointer: Any, resume: bool
 ) -> tuple[Any, Any, bool]:
     """(learner, state, resumed): refuse another run's checkpoints or a mismatched resume
-    before anything compiles, then build the learner and restore."""
-    from elevens.runs.resume import check_resumable, latest_resumable_step
-    from elevens.runs.teams import load_learner_params
+    before anything compiles, then build the learner and restore (or start from
+    ``run.init_from``, whose networks must be this run's, as in ``elevens train``)."""
+    from elevens.runs.loop import evaluation_team
+    from elevens.runs.resume import check_resumable, latest_resumable_step, load_start_params
     from elevens.train.learner import make_learner
 
     train_config = config.train_config()
+    latest = latest_resumable_step(checkpointer, resume, "--resume", "--run.run-dir")
     source_params = None
-    if config.init_from is not None:
-        # The source's networks (their sizes and switches) carry over; PPO and the rest are ours.
-        source, source_params = load_learner_params(config.init_from)
-        train_config = dataclasses.replace(train_config, network=source.network).validate()
-    latest = latest_resumable_step(checkpointer, resume, "--resume", "--run-dir")
     if latest is not None:
-        if config.init_from is None:
-            # This command has no network flags: a resumed run keeps the networks it was
-            # saved with (a run started with --init-from took its source's).
-            train_config = _with_saved_network(checkpointer, train_config)
         # The networks, PPO and game sizes must be the checkpoint's (a list of differences,
         # not a shape error from the restore).
         check_resumable(checkpointer, train_config)
-    learner = make_learner(train_config)
-    state = learner.init(jax.random.key(config.seed), source_params if latest is None else None)
+    elif config.run.init_from:
+        _, source_params = load_start_params(config.run.init_from, train_config)
+    for team in config.run.eval_teams:  # a bad spec fails here, before anything compiles
+        evaluation_team(team, config.learner.env.game)
+    learner = make_learner(config.learner, devices=1)
+    state = learner.init(jax.random.key(config.run.seed), source_params)
     if latest is not None:
         state, _, _ = checkpointer.restore(state)
     return learner, state, latest is not None

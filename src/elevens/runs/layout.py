@@ -11,7 +11,7 @@
       events.out.tfevents.*    TensorBoard
       learning_curve.png       evaluation outcome against each team, by env steps and hours
       learner_vs_naive.gif     one game of the final learner
-      robocup_config.json      elevens robocup train: its own flags
+      robocup_config.json      elevens robocup train: its whole RoboCupTrainConfig
       episodes.csv             elevens robocup train: one row per server game
 """
 

@@ -38,7 +38,14 @@ from elevens.runs.resume import (
     load_start_params,
 )
 from elevens.train import parallel
-from elevens.train.config import TrainConfig, mix_schedule, scenario_config, validate
+from elevens.train.config import (
+    LearnerConfig,
+    RunConfig,
+    TrainConfig,
+    mix_schedule,
+    scenario_config,
+    validate,
+)
 from elevens.train.learner import (
     Learner,
     TrainState,
@@ -181,14 +188,15 @@ def open_run(
         )
         damage = _resume_damage(checkpointer, config) if latest is not None else None
         for team in config.run.eval_teams:  # a bad spec fails here, before anything compiles
-            evaluation_team(team, config.env.env_params())
+            evaluation_team(team, config.learner.env.game)
         start = None
         if config.run.init_from and latest is None:
             _, start = load_start_params(config.run.init_from, config)
         learners = {
-            game: make_learner(cfg, team_on_field) for game, cfg in game_configs(config).items()
+            game: make_learner(learner, team_on_field, devices=config.run.devices)
+            for game, learner in game_configs(config.learner).items()
         }
-        fresh = learners[config.env.scenario].init(jax.random.key(config.run.seed), start)
+        fresh = learners[config.learner.env.scenario].init(jax.random.key(config.run.seed), start)
         resumed = Resumed(state=fresh)
         if latest is not None:
             resumed = _restore(
@@ -201,13 +209,13 @@ def open_run(
     return _Run(config, layout, checkpointer, learners, resumed, progress)
 
 
-def game_configs(config: TrainConfig) -> dict[str, TrainConfig]:
-    """The config of each game size a run trains on: a mixed run (env.mix) has one learner
-    per size over the same TrainState; the main scenario's evaluates, draws and shapes."""
-    if not config.env.mix:
-        return {config.env.scenario: config}
-    games = (config.env.scenario, *config.env.mix)
-    return {game: scenario_config(config, game) for game in games}
+def game_configs(learner: LearnerConfig) -> dict[str, LearnerConfig]:
+    """The learner of each game size a run trains on: a mixed run (env.mix) has one learner
+    per size over the same TrainState; the main game's evaluates, draws and shapes."""
+    if not learner.env.mix:
+        return {learner.env.scenario: learner}
+    games = (learner.env.scenario, *learner.env.mix)
+    return {game: scenario_config(learner, game) for game in games}
 
 
 def _resume_damage(checkpointer: Any, config: TrainConfig) -> Exception | None:
@@ -255,7 +263,9 @@ def _restore(
     return Resumed(
         state=state,
         resuming=True,
-        env_steps=int(meta.get("env_steps", int(state.iteration) * config.env_steps_per_iteration)),
+        env_steps=int(
+            meta.get("env_steps", int(state.iteration) * config.learner.env_steps_per_iteration)
+        ),
         train_seconds=float(meta.get("train_seconds", 0.0)),
         shaping_off_at=meta.get("shaping_off_iteration"),
         fallback=fallback,
@@ -275,10 +285,13 @@ class _Run:
         self.config, self.layout, self.checkpointer = config, layout, checkpointer
         self.learners = learners
         self.configs = {game: learner.config for game, learner in learners.items()}
-        self.learner = learners[config.env.scenario]
+        self.learner = learners[config.learner.env.scenario]
         self.lead, self.processes = parallel.is_lead(), jax.process_count()
         run = config.run
-        self.schedule = mix_schedule(config, -(-run.iterations // run.iterations_per_chunk) + 1)
+        self.chunk_length = config.learner.iterations_per_chunk
+        self.schedule = mix_schedule(
+            config.learner, -(-run.iterations // self.chunk_length) + 1
+        )
         self.env_steps, self.train_seconds = resumed.env_steps, resumed.train_seconds
         self.shaping_off_at = resumed.shaping_off_at
         if self.lead:
@@ -328,7 +341,9 @@ class _Run:
         """Evaluate the current state (its time counts as training time) and log it."""
         began = time.perf_counter()
         it = int(self.state.iteration)
-        results = evaluate(self.learner, _local(self.state), jax.random.fold_in(self.eval_key, it))
+        results = evaluate(
+            self.learner, _local(self.state), jax.random.fold_in(self.eval_key, it), self.config.run
+        )
         self.train_seconds += time.perf_counter() - began
         # The chunk before logged the time at this step; only the untrained baseline has none.
         time_rows = _time_metrics(self.env_steps, self.train_seconds) if it == 0 else {}
@@ -358,7 +373,7 @@ class _Run:
             spent = self.train_seconds + seconds * (offset + 1) / len(rows)
             row = {**row, **_time_metrics(self.env_steps, spent)}
             row["time/env_steps_per_s"] = chunk_sps
-            if self.config.env.mix:
+            if self.config.learner.env.mix:
                 row["env/players_per_team"] = float(self.configs[game].players_per_team)
             self.logger.log(it, row)
             if row["env/shaping_switched_off"] == 1.0:
@@ -386,8 +401,8 @@ class _Run:
     def chunk(self, on_chunk: ChunkHook | None) -> None:
         """One compiled chunk of K iterations (of the scheduled game size), then the hooks."""
         run = self.config.run
-        count = min(run.iterations_per_chunk, run.iterations - self.iteration)
-        game = self.schedule[self.iteration // run.iterations_per_chunk]
+        count = min(self.chunk_length, run.iterations - self.iteration)
+        game = self.schedule[self.iteration // self.chunk_length]
         if game not in self.compiled:
             self.bar.note(
                 f"compiling the {game} training chunk ({count} iteration"
@@ -403,7 +418,7 @@ class _Run:
         if game not in self.compiled:
             self.compiled.add(game)
             self.bar.note(f"compiled and ran the first {game} chunk in {seconds:.0f} s")
-        self.state = with_games(new_state, self.configs[self.config.env.scenario])
+        self.state = with_games(new_state, self.configs[self.config.learner.env.scenario])
         before, self.iteration = self.iteration, int(self.state.iteration)
         self.log_rows(before, rows, game, seconds)
         shown = dict(rows[-1])
@@ -441,7 +456,8 @@ class _Run:
             )
         if not self.interrupted and run.write_gif:
             files["gif"] = write_gif(
-                self.learner, _local(self.state), self.layout.gif, seed=run.seed
+                self.learner, _local(self.state), self.layout.gif, seed=run.seed,
+                deterministic=run.eval_deterministic,
             )
         return files
 
@@ -457,11 +473,14 @@ class _Run:
 
 
 def evaluate(
-    learner: Learner, state: TrainState, key: jax.Array, teams: tuple[str, ...] | None = None,
-    num_games: int | None = None,
+    learner: Learner, state: TrainState, key: jax.Array, run: RunConfig | None = None,
+    teams: tuple[str, ...] | None = None, num_games: int | None = None,
 ) -> dict[str, float]:
     """Play the learner (a NetworkTeam) against each team with ``play_match``: handcrafted
     teams by name, or any team spec (a shipped team, a run or checkpoint, an exported folder).
+    ``run``'s evaluation fields (default: ``RunConfig``'s) give the teams, the games and
+    whether the learner plays its mean action; ``teams`` and ``num_games`` override the first
+    two.
 
     Returns ``eval/<team>/outcome`` (``<team>``: the spec, ``/`` made ``_``; the mean outcome
     from the learner's view: win 1, draw 0.5, loss 0), ``/win``, ``/draw``, ``/loss``,
@@ -472,7 +491,7 @@ def evaluate(
     from elevens.eval.match import play_match, summary
     from elevens.teams.network import NetworkTeam
 
-    run = learner.config.run
+    run = RunConfig() if run is None else run
     teams = run.eval_teams if teams is None else teams
     num_games = run.eval_games if num_games is None else num_games
     team = NetworkTeam(policy=learner.policy, deterministic=run.eval_deterministic, name="learner")
@@ -541,7 +560,7 @@ def _local(state: TrainState) -> TrainState:
     return state.replace(params=parallel.to_host(state.params))
 
 
-def with_games(state: TrainState, config: TrainConfig) -> TrainState:
+def with_games(state: TrainState, config: LearnerConfig) -> TrainState:
     """``state`` with the per-game opponent indices of ``config``'s games per iteration (a mixed
     run's sizes differ in games; the indices are zeros for the opponents a mix allows)."""
     games = opponent_index_count(config)
@@ -568,6 +587,7 @@ def _time_metrics(env_steps: int, seconds: float) -> dict[str, float]:
 
 def _title(config: TrainConfig) -> str:
     return (
-        f"{config.env.scenario} ({config.preset} preset), opponent: {config.opponent.kind}, "
+        f"{config.learner.env.scenario} ({config.preset} preset), opponent: "
+        f"{config.learner.opponent.kind}, "
         f"seed {config.run.seed}"
     )

@@ -64,18 +64,17 @@ def write_learning_curve(
 
 
 def write_gif(
-    learner: Any, state: Any, path: str | Path, seed: int = 0, opponent: str = "naive"
+    learner: Any, state: Any, path: str | Path, seed: int = 0, opponent: str = "naive",
+    deterministic: bool = False,
 ) -> Path:
-    """One game of the learner (side 0) against a handcrafted team, drawn as a GIF or MP4."""
+    """One game of the learner (side 0) against a handcrafted team, drawn as a GIF or MP4
+    (``deterministic``: the learner plays its mean action)."""
     from elevens.env.render import frames_from_states, save_video
     from elevens.eval.match import play_match
     from elevens.eval.play import states_from_record
     from elevens.teams.network import NetworkTeam
 
-    team = NetworkTeam(
-        policy=learner.policy, deterministic=learner.config.run.eval_deterministic,
-        name="learner",
-    )
+    team = NetworkTeam(policy=learner.policy, deterministic=deterministic, name="learner")
     result = play_match(
         learner.env, learner.env_params, team, resolve_team(opponent, learner.env_params),
         jax.random.key(seed + 2), 1, home_params=state.params.policy, swap_sides=False,

@@ -39,12 +39,13 @@ def load_start_params(text: str, config: TrainConfig) -> tuple[TrainConfig, Lear
     its networks are ``config``'s. The team size may differ: the networks read entity slots,
     so a 2 v 2 team starts an 11 v 11 run (and the other way round)."""
     source, params = load_learner_params(text)
-    if source.network != config.network:
+    network = config.learner.network
+    if source.learner.network != network:
         differences = [
-            f"--network.{name.replace('_', '-')} {getattr(source.network, name)!r} "
-            f"(this run: {getattr(config.network, name)!r})"
-            for name in (field.name for field in dataclasses.fields(source.network))
-            if getattr(source.network, name) != getattr(config.network, name)
+            f"--network.{name.replace('_', '-')} {getattr(source.learner.network, name)!r} "
+            f"(this run: {getattr(network, name)!r})"
+            for name in (field.name for field in dataclasses.fields(network))
+            if getattr(source.learner.network, name) != getattr(network, name)
         ]
         raise RunRefusedError(
             f"run.init_from={text!r} has other networks than this run; pass "

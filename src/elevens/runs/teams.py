@@ -151,11 +151,12 @@ def load_checkpoint_team(
 
     What the loader expects (``elevens.train.learner`` / ``checkpoint`` as of this writing):
 
-    * the step's ``config.json`` (``checkpoint.load_config``) is a ``TrainConfig.to_dict()``;
-      its ``network`` group builds the policy (``NetworkConfig.policy()``) and ``env.scenario``
-      gives the team size it trained with;
+    * the step's ``config.json`` (``checkpoint.load_config``) is a ``TrainConfig.to_dict()``
+      (config_version 2, or an older one that ``TrainConfig.from_saved`` maps); its
+      ``learner.network`` builds the policy (``NetworkConfig.policy()``) and
+      ``learner.env.game.players_per_team`` is the team size it trained with;
     * the saved state is either the trainer's ``TrainState`` (restored against
-      ``train_state_shape(config)``; the policy is ``state.params.policy``),
+      ``train_state_shape(config.learner)``; the policy is ``state.params.policy``),
       or the policy's own variables ``{"params": ...}`` as ``AttentionPolicy.init`` returns them.
 
     Raises FileNotFoundError (no such path or no checkpoint), ``CheckpointError`` (corrupt, or a
@@ -200,10 +201,11 @@ def _open_checkpoint(path: Path, iteration: int | None) -> tuple[Any, int, Any]:
 
 
 def _train_state_shape(config: Any) -> Any:
-    """The abstract TrainState ``config`` builds (shapes only: nothing is computed)."""
+    """The abstract TrainState ``config`` builds (shapes only: nothing is computed). Shapes do
+    not depend on the devices a run used, so one device serves any checkpoint."""
     from elevens.train.learner import train_state_shape
 
-    return train_state_shape(config)
+    return train_state_shape(config.learner, devices=1)
 
 
 def _restore_train_state(checkpointer: Any, step: int, config: Any) -> Any:
@@ -225,7 +227,8 @@ def _network_team(config: Any, deterministic: bool | None) -> TeamPolicy:
     if deterministic is None:
         deterministic = bool(config.run.eval_deterministic)
     return NetworkTeam(
-        policy=config.network.policy(), deterministic=deterministic, name=NETWORK_TEAM_NAME
+        policy=config.learner.network.policy(), deterministic=deterministic,
+        name=NETWORK_TEAM_NAME,
     )
 
 
@@ -246,8 +249,8 @@ def _load_checkpoint(
 
     checkpointer, step, config = _open_checkpoint(path, iteration)
     try:
-        policy = config.network.policy()
-        players = config.env.players_per_team
+        policy = config.learner.network.policy()
+        players = config.learner.players_per_team
         errors = []
         policy_params = None
         try:
@@ -288,14 +291,15 @@ def load_team(spec: str | TeamSpec, *, deterministic: bool | None = None) -> Tea
     else:
         assert parsed.path is not None
         policy, params, config = _load_checkpoint(parsed.path, parsed.iteration, deterministic)
+    game = config.learner.env.game
     return Team(
         name=parsed.name,
         policy=policy,
         params=params,
-        trained_players=config.env.players_per_team,
-        size_dependent=not config.network.use_attention,
+        trained_players=config.learner.players_per_team,
+        size_dependent=not config.learner.network.use_attention,
         spec=parsed.text,
-        field=(config.env.field_length, config.env.field_width, config.env.goal_width),
+        field=(game.field_length, game.field_width, game.goal_width),
     )
 
 

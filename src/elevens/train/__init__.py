@@ -12,6 +12,7 @@ from typing import Any
 
 from elevens.train.config import (
     EnvConfig,
+    LearnerConfig,
     NetworkConfig,
     OpponentConfig,
     RunConfig,
@@ -30,6 +31,7 @@ _LAZY = {
 
 __all__ = [
     "EnvConfig",
+    "LearnerConfig",
     "NetworkConfig",
     "OpponentConfig",
     "RunConfig",

@@ -1,19 +1,27 @@
 """TrainConfig: every knob of a training run, as frozen, typed, documented dataclasses.
 
-A config is built from a named preset plus overrides (``make_config("2v2", **{"ppo.epochs": 3})``),
+A run's config has two parts. ``LearnerConfig`` is everything that is compiled into the learner
+(the game, the networks, PPO, the opponent, games per iteration and K): ``make_learner`` takes
+it alone, so nothing of the host loop can change what is computed. ``RunConfig`` is the host
+loop (length, evaluation, checkpoints, seed, devices, run directory). ``TrainConfig`` holds both
+and the preset's name.
+
+A config is built from a named preset plus overrides named as the flags are
+(``make_config("2v2", **{"ppo.epochs": 3, "games_per_iteration": 32, "run.iterations": 10})``),
 checked by ``validate`` before anything compiles, and saved as JSON beside every checkpoint
-(``to_dict`` / ``from_dict``; nothing is pickled). The comment under each field says where its
+(``to_dict`` / ``from_saved``, ``config_version`` 2; a version-1 file, from before the split,
+is read field by field; nothing is pickled). The comment under each field says where its
 default comes from: the thesis (seeds/000: Algorithm 4, section 4.2, section 5.2, tables 6.1 and
 6.2), SPEC.md (the game's defaults, which are ``EnvParams``'s), or our own choice and why.
 
 Units of the learner (see ``elevens.train.rollout``): one iteration plays ``games_per_iteration``
 whole episodes; in each of them the learning team's ``n`` players each give one sequence of
-``episode_length`` steps. ``ppo.batch_size`` counts those ``games_per_iteration * n`` player
-sequences (table 6.1's 660 is 330 games of 2 players, or 60 games of 11), and must equal that
-number. ``ppo.minibatch_size`` counts sequences too; a minibatch holds whole games (the critic,
-whose input is the same for a game's n players, then runs once per game instead of n times), so
-it must be a multiple of n that divides the batch: table 6.1's 60 for 1 or 2 players a side, 55
-(5 games, 12 minibatches) for 11.
+``episode_length`` steps. The PPO batch (``LearnerConfig.batch_size``) is those
+``games_per_iteration * n`` player sequences (table 6.1's 660 is 330 games of 2 players, or 60
+games of 11). ``ppo.minibatch_size`` counts sequences too; a minibatch holds whole games (the
+critic, whose input is the same for a game's n players, then runs once per game instead of n
+times), so it must be a multiple of n that divides the batch: table 6.1's 60 for 1 or 2 players
+a side, 55 (5 games, 12 minibatches) for 11.
 """
 
 from __future__ import annotations
@@ -26,14 +34,11 @@ import typing
 import warnings
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
-from elevens.env.params import (
-    BALL_SPAWN_MODES,
-    MAX_PLAYERS_PER_TEAM,
-    SPAWN_MODES,
-    EnvParams,
-)
+import tyro
+
+from elevens.env.params import MAX_PLAYERS_PER_TEAM, EnvParams
 from elevens.train.opponents import (
     LEAGUE_EVERY,
     LEAGUE_MIN_GAMES,
@@ -49,7 +54,12 @@ from elevens.train.shaping import SHAPING_THRESHOLD, SHAPING_WINDOW
 OpponentKind = Literal["polyak", "self", "league"]
 EVAL_TEAMS: tuple[str, ...] = ("random", "naive", "teamwork")
 """The handcrafted teams the learner can be evaluated against (``elevens.eval.play``)."""
+CONFIG_VERSION = 2
+"""Written as ``config_version`` by ``to_dict``. 1 (no key): before LearnerConfig/RunConfig."""
 _SCENARIO = re.compile(r"^(\d+)v(\d+)$")
+_SHORT = tyro.conf.arg(prefix_name=False)
+"""A group or field of the learner whose flag keeps its own short name (``--ppo.epochs``, not
+``--learner.ppo.epochs``)."""
 
 
 # --------------------------------------------------------------------------------------------
@@ -59,27 +69,15 @@ _SCENARIO = re.compile(r"^(\d+)v(\d+)$")
 
 @dataclasses.dataclass(frozen=True)
 class EnvConfig:
-    """The game the learner trains in; numbers not named here keep their SPEC.md defaults."""
+    """The game the learner trains in: the simulator's own ``EnvParams`` (every rule and
+    constant of SPEC.md, each a flag ``--env.NAME``) and the training-only schedules."""
 
-    scenario: str = "2v2"
-    """'NvN', N players a side from 1 to 11. Default: the thesis' 4-player setting (section 6.3)."""
-    spawn: str = "random"
-    """'formation' or 'random'. Default: random, as the thesis trained its 4-player team
-    ("we spawn the agents at random positions at the start of each 4 player game", 6.5)."""
-    ball_spawn: str = "random"
-    """'centre' or 'random' (SPEC.md / EnvParams default: random, as in the thesis)."""
-    episode_length: int = 400
-    """Steps per episode (table 6.1: 400). One iteration plays exactly one episode per game."""
-    field_length: float = 100.0
-    """Goal line to goal line, metres (SPEC.md). Smaller fields make tiny learning runs fast."""
-    field_width: float = 70.0
-    """Side line to side line, metres (SPEC.md)."""
-    goal_width: float = 40.0
-    """Goal mouth, metres (SPEC.md: oversized on purpose, thesis fig. 4.1)."""
-    ball_shaping_weight: float = 0.1
-    """w_b of eq. 4.1 while shaping is on (thesis section 4.2: 0.1)."""
-    approach_shaping_weight: float = 0.05
-    """w_a of eq. 4.1 while shaping is on (thesis section 4.2: 0.05)."""
+    game: Annotated[EnvParams, tyro.conf.arg(name="env", prefix_name=False)] = EnvParams(
+        players_per_team=2, spawn="random"
+    )
+    """The game, ``players_per_team`` a side. Default: the thesis' 4-player setting with random
+    spawns ("we spawn the agents at random positions at the start of each 4 player game", 6.5);
+    every other number is SPEC.md's (``elevens.env.params``)."""
     shaping_schedule: bool = True
     """Switch shaping off for good once the learner scores in > shaping_threshold of its recent
     games (thesis section 4.2). False keeps the shaping weights on for the whole run."""
@@ -88,40 +86,27 @@ class EnvConfig:
     shaping_threshold: float = SHAPING_THRESHOLD
     """Shaping goes off when the scoring rate is above this (section 4.2: "more than 75%")."""
     mix: tuple[str, ...] = ()
-    """Other games trained in the same run beside ``scenario`` (thesis 7.4.4), e.g. ('2v2',):
-    the small games teach the basic skills cheaply, the full one team play. Each chunk of
-    iterations plays one size, chosen so that each size gets its share (``mix_shares``). Every
-    size plays ``ppo.batch_size`` player sequences an iteration (batch_size / n games) in
+    """Other games trained in the same run beside the main one (thesis 7.4.4), as 'NvN', e.g.
+    ('2v2',): the small games teach the basic skills cheaply, the full one team play. Each chunk
+    of iterations plays one size, chosen so that each size gets its share (``mix_shares``).
+    Every size plays the main game's batch of player sequences an iteration (batch / n games) in
     minibatches of ``ppo.minibatch_size`` sequences, so both must be multiples of each size's n.
     The networks attend over entity slots, so one set of weights plays every size with no
-    padding (a 2 v 2 game costs what a 2 v 2 game costs). Evaluation and the GIF use
-    ``scenario``. (): one size."""
+    padding (a 2 v 2 game costs what a 2 v 2 game costs). Evaluation and the GIF use the main
+    game. (): one size."""
     mix_shares: tuple[float, ...] = ()
-    """The share of the iterations of each game of ``mix``, in its order; ``scenario`` has the
+    """The share of the iterations of each game of ``mix``, in its order; the main game has the
     rest. E.g. ``mix=('2v2',), mix_shares=(0.5,)``: every other chunk is 2 v 2."""
 
     @property
     def players_per_team(self) -> int:
-        """n, from the scenario ('2v2' -> 2). Call ``validate`` first for a clear error."""
-        match = _SCENARIO.match(self.scenario)
-        if match is None:
-            raise ValueError(_scenario_error(self.scenario))
-        return int(match.group(1))
+        """n, the players a side of the main game."""
+        return self.game.players_per_team
 
-    def env_params(self) -> EnvParams:
-        """The EnvParams of this config (shaping weights at their 'on' values)."""
-        return EnvParams(
-            players_per_team=self.players_per_team,
-            spawn=self.spawn,
-            ball_spawn=self.ball_spawn,
-            episode_length=self.episode_length,
-            field_length=self.field_length,
-            field_width=self.field_width,
-            goal_width=self.goal_width,
-            ball_shaping_weight=self.ball_shaping_weight,
-            approach_shaping_weight=self.approach_shaping_weight,
-        )
-
+    @property
+    def scenario(self) -> str:
+        """The main game as 'NvN' (the form of ``mix``)."""
+        return f"{self.players_per_team}v{self.players_per_team}"
 
 @dataclasses.dataclass(frozen=True)
 class NetworkConfig:
@@ -197,6 +182,53 @@ class OpponentConfig:
 
 
 @dataclasses.dataclass(frozen=True)
+class LearnerConfig:
+    """Everything compiled into the learner (``make_learner`` takes this alone): the game, the
+    networks, PPO, the opponent, and how many games and iterations one compiled call plays."""
+
+    env: Annotated[EnvConfig, _SHORT] = EnvConfig()
+    """The game."""
+    network: Annotated[NetworkConfig, _SHORT] = NetworkConfig()
+    """Policy and critic networks."""
+    ppo: Annotated[PPOHyperparams, _SHORT] = PPOHyperparams()
+    """PPO numbers (elevens.train.ppo: table 6.1 and Algorithm 4)."""
+    opponent: Annotated[OpponentConfig, _SHORT] = OpponentConfig()
+    """The training opponent."""
+    games_per_iteration: Annotated[int, _SHORT] = 330
+    """Games played per iteration, all at once (vmapped). The learner plays side 0 in the first
+    ceil(G / 2) of them and side 1 in the rest. 330 x 2 players = table 6.1's batch of 660."""
+    iterations_per_chunk: Annotated[int, _SHORT] = 5
+    """K: iterations compiled into one call (lax.scan). Larger K means fewer host round trips;
+    logging, evaluation and checkpoints happen only between chunks. It changes no result, so a
+    resumed run may change it."""
+
+    @property
+    def players_per_team(self) -> int:
+        return self.env.players_per_team
+
+    @property
+    def batch_size(self) -> int:
+        """The PPO batch in player sequences: games_per_iteration * n (table 6.1: 660)."""
+        return self.games_per_iteration * self.players_per_team
+
+    @property
+    def num_minibatches(self) -> int:
+        """Minibatches per epoch (table 6.1: 660 / 60 = 11)."""
+        return self.batch_size // self.ppo.minibatch_size
+
+    @property
+    def env_steps_per_iteration(self) -> int:
+        """Game steps per iteration (one step of one game, all 2n players acting)."""
+        return self.games_per_iteration * self.env.game.episode_length
+
+    def validate(self) -> LearnerConfig:
+        """Raise ``ValueError`` naming the first bad field and its allowed values; else return
+        self. Pure Python: nothing is traced or compiled."""
+        validate_learner(self)
+        return self
+
+
+@dataclasses.dataclass(frozen=True)
 class RunConfig:
     """How long to train, and what the host loop does between compiled chunks."""
 
@@ -206,12 +238,6 @@ class RunConfig:
     """Training time budget: the run ends like a finished one (final evaluation, checkpoint,
     curve, GIF) at the first chunk end where ``time/hours`` (compiling, chunks and evaluations,
     summed over resumed sessions) reaches it, even before ``iterations``. 0: no budget."""
-    games_per_iteration: int = 330
-    """Games played per iteration, all at once (vmapped). The learner plays side 0 in the first
-    ceil(G / 2) of them and side 1 in the rest. 330 x 2 players = table 6.1's batch of 660."""
-    iterations_per_chunk: int = 5
-    """K: iterations compiled into one call (lax.scan). Larger K means fewer host round trips;
-    logging, evaluation and checkpoints happen only between chunks."""
     eval_every: int = 25
     """Evaluate against the handcrafted teams every this many iterations (at the first chunk end
     past each multiple), and at the end. 0: only at the end."""
@@ -255,30 +281,11 @@ class TrainConfig:
 
     preset: str = "2v2"
     """The preset this config started from (informational; the fields below are what count)."""
-    env: EnvConfig = EnvConfig()
-    """The game."""
-    network: NetworkConfig = NetworkConfig()
-    """Policy and critic networks."""
-    ppo: PPOHyperparams = PPOHyperparams()
-    """PPO numbers (elevens.train.ppo: table 6.1 and Algorithm 4)."""
-    opponent: OpponentConfig = OpponentConfig()
-    """The training opponent."""
+    learner: LearnerConfig = LearnerConfig()
+    """What is computed (flags: --env.*, --network.*, --ppo.*, --opponent.*,
+    --games-per-iteration, --iterations-per-chunk)."""
     run: RunConfig = RunConfig()
-    """Length, evaluation, checkpoints, seed and run directory."""
-
-    @property
-    def players_per_team(self) -> int:
-        return self.env.players_per_team
-
-    @property
-    def units_per_iteration(self) -> int:
-        """Player sequences per iteration: games_per_iteration * n (the PPO batch)."""
-        return self.run.games_per_iteration * self.players_per_team
-
-    @property
-    def env_steps_per_iteration(self) -> int:
-        """Game steps per iteration (one step of one game, all 2n players acting)."""
-        return self.run.games_per_iteration * self.env.episode_length
+    """Length, evaluation, checkpoints, seed, devices and run directory."""
 
     def validate(self) -> TrainConfig:
         """Raise ``ValueError`` naming the first bad field and its allowed values; else return
@@ -287,14 +294,15 @@ class TrainConfig:
         return self
 
     def to_dict(self) -> dict[str, Any]:
-        """A JSON-ready dict (tuples become lists)."""
-        return json.loads(json.dumps(dataclasses.asdict(self)))
+        """A JSON-ready dict (tuples become lists), with ``config_version``."""
+        fields = json.loads(json.dumps(dataclasses.asdict(self)))
+        return {"config_version": CONFIG_VERSION, **fields}
 
     @classmethod
     def from_saved(cls, data: Mapping[str, Any], source: str) -> TrainConfig:
         """A config read back from ``source`` (a checkpoint's or an exported team's
         config.json), older versions' included (``from_dict(fill_missing=True)``); a
-        ``ValueError`` naming ``source`` if it is not a TrainConfig of this version."""
+        ``ValueError`` naming ``source`` if it is not a TrainConfig of any version."""
         try:
             return cls.from_dict(data, fill_missing=True)
         except (TypeError, ValueError) as error:
@@ -306,12 +314,25 @@ class TrainConfig:
         keys unless ``fill_missing``.
 
         ``fill_missing`` reads a config saved by an older version (a checkpoint's
-        config.json): fields added since then take their defaults, which reproduce the old
-        behaviour (a new field must default to what the code did before it existed), and a
-        ``UserWarning`` names them.
+        config.json): a version-1 dict is first mapped to version 2 (``migrate_v1``); fields
+        added since then take their defaults, which reproduce the old behaviour (a new field
+        must default to what the code did before it existed), and a ``UserWarning`` names them.
         """
+        if not isinstance(data, Mapping):
+            raise ValueError(f"config: expected an object, got {type(data).__name__}")
+        version = data.get("config_version", 1)
+        if version == 1 and fill_missing:
+            data = migrate_v1(data)
+        elif version != CONFIG_VERSION:
+            raise ValueError(
+                f"config_version={version!r} is not readable here: this version of elevens "
+                f"writes {CONFIG_VERSION} and reads 1 (with fill_missing) and {CONFIG_VERSION}"
+                + (" (was it saved by a newer version of elevens?)"
+                   if _is_int(version) and version > CONFIG_VERSION else "")
+            )
+        fields = {key: value for key, value in data.items() if key != "config_version"}
         filled: list[str] | None = [] if fill_missing else None
-        config = _from_dict(cls, data, "", filled)
+        config = _from_dict(cls, fields, "", filled)
         if filled:
             warnings.warn(
                 "the config was saved by an older version of elevens; these fields are not in "
@@ -326,6 +347,55 @@ class TrainConfig:
     @classmethod
     def from_json(cls, text: str) -> TrainConfig:
         return cls.from_dict(json.loads(text))
+
+
+_V1_GAME_FIELDS = (
+    "spawn", "ball_spawn", "episode_length", "field_length", "field_width", "goal_width",
+    "ball_shaping_weight", "approach_shaping_weight",
+)
+"""Version 1's copies of EnvParams fields in ``env``; now in ``env.game``."""
+
+
+def migrate_v1(data: Mapping[str, Any]) -> dict[str, Any]:
+    """A version-1 config dict (before LearnerConfig/RunConfig) as version 2, field by field:
+    ``env.scenario`` 'NvN' and the copied EnvParams fields go to ``env.game``; ``ppo.batch_size``
+    goes (it is derived now; a value other than games x n is an error);
+    ``run.games_per_iteration`` and ``run.iterations_per_chunk`` move to the learner. Keys it
+    does not know are left for ``from_dict`` to refuse."""
+    old = {key: (dict(value) if isinstance(value, Mapping) else value)
+           for key, value in data.items()}
+    env, ppo, run = (old.get(name, {}) for name in ("env", "ppo", "run"))
+    if not all(isinstance(group, dict) for group in (env, ppo, run)):
+        raise ValueError("config version 1: env, ppo and run must be objects")
+    scenario = env.pop("scenario", "2v2")
+    match = _SCENARIO.match(scenario) if isinstance(scenario, str) else None
+    if match is None or match.group(1) != match.group(2):
+        raise ValueError(f"config version 1: {_scenario_error(scenario)}")
+    n = int(match.group(1))
+    # Version 1 could not set the other EnvParams fields: they had EnvParams's defaults. Its
+    # EnvConfig spawned at random by default (EnvParams: formation).
+    game = {field.name: field.default for field in dataclasses.fields(EnvParams)}
+    game.update(players_per_team=n, spawn="random")
+    game.update({name: env.pop(name) for name in _V1_GAME_FIELDS if name in env})
+    learner: dict[str, Any] = {
+        "env": {"game": game, **env},
+        **{name: old.pop(name) for name in ("network", "opponent") if name in old},
+    }
+    for name in ("games_per_iteration", "iterations_per_chunk"):
+        if name in run:
+            learner[name] = run.pop(name)
+    batch = ppo.pop("batch_size", None)
+    games = learner.get("games_per_iteration")
+    if batch is not None and isinstance(games, int) and batch != games * n:
+        raise ValueError(
+            f"config version 1: ppo.batch_size={batch!r} is not run.games_per_iteration x "
+            f"players = {games} x {n}; version 2 derives the batch from those two"
+        )
+    learner["ppo"] = ppo
+    old.pop("env", None)
+    old.pop("ppo", None)
+    old["run"] = run
+    return {**old, "learner": learner, "config_version": CONFIG_VERSION}
 
 
 # --------------------------------------------------------------------------------------------
@@ -343,24 +413,26 @@ def _quickstart() -> TrainConfig:
     # suits 100-step episodes (0.999 barely discounts them). 300 iterations: about 2-3 minutes.
     return TrainConfig(
         preset="quickstart",
-        env=EnvConfig(
-            scenario="1v1",
-            spawn="random",
-            ball_spawn="random",
-            episode_length=100,
-            field_length=50.0,
-            field_width=35.0,
-            goal_width=20.0,
-        ),
-        network=NetworkConfig(features=32, num_heads=4, lstm_features=16, lstm_layers=1),
-        ppo=PPOHyperparams(
-            learning_rate=1e-3, batch_size=64, minibatch_size=16, gamma=0.99, epochs=5
-        ),
-        opponent=OpponentConfig(kind="polyak"),
-        run=RunConfig(
-            iterations=300,
+        learner=LearnerConfig(
+            env=EnvConfig(
+                game=EnvParams(
+                    players_per_team=1,
+                    spawn="random",
+                    ball_spawn="random",
+                    episode_length=100,
+                    field_length=50.0,
+                    field_width=35.0,
+                    goal_width=20.0,
+                )
+            ),
+            network=NetworkConfig(features=32, num_heads=4, lstm_features=16, lstm_layers=1),
+            ppo=PPOHyperparams(learning_rate=1e-3, minibatch_size=16, gamma=0.99, epochs=5),
+            opponent=OpponentConfig(kind="polyak"),
             games_per_iteration=64,
             iterations_per_chunk=5,
+        ),
+        run=RunConfig(
+            iterations=300,
             eval_every=10,
             eval_games=64,
             eval_teams=("random", "naive"),
@@ -381,23 +453,25 @@ def _two_v_two() -> TrainConfig:
     # flags, are in docs/results/2v2_learning.md.
     return TrainConfig(
         preset="2v2",
-        env=EnvConfig(
-            scenario="2v2", spawn="random", episode_length=400, shaping_schedule=False
-        ),
-        ppo=PPOHyperparams(
-            learning_rate=5e-4,
-            batch_size=128,
-            minibatch_size=16,
-            gamma=0.99,
-            advantage_estimator="gae",
-            normalize_advantages=True,
-            entropy_weight=1e-3,
-        ),
-        opponent=OpponentConfig(kind="polyak", polyak_tau=0.05),
-        run=RunConfig(
-            iterations=5000,
+        learner=LearnerConfig(
+            env=EnvConfig(
+                game=EnvParams(players_per_team=2, spawn="random", episode_length=400),
+                shaping_schedule=False,
+            ),
+            ppo=PPOHyperparams(
+                learning_rate=5e-4,
+                minibatch_size=16,
+                gamma=0.99,
+                advantage_estimator="gae",
+                normalize_advantages=True,
+                entropy_weight=1e-3,
+            ),
+            opponent=OpponentConfig(kind="polyak", polyak_tau=0.05),
             games_per_iteration=64,
             iterations_per_chunk=5,
+        ),
+        run=RunConfig(
+            iterations=5000,
             eval_every=10,
             eval_games=100,
             eval_teams=("random", "naive"),
@@ -415,13 +489,17 @@ def _eleven_v_eleven() -> TrainConfig:
     # (about two minutes on a 2-core CPU), hence K = 1.
     return TrainConfig(
         preset="11v11",
-        env=EnvConfig(scenario="11v11", spawn="formation", episode_length=400),
-        ppo=PPOHyperparams(minibatch_size=55),
-        opponent=OpponentConfig(kind="polyak"),
-        run=RunConfig(
-            iterations=5000,
+        learner=LearnerConfig(
+            env=EnvConfig(
+                game=EnvParams(players_per_team=11, spawn="formation", episode_length=400)
+            ),
+            ppo=PPOHyperparams(minibatch_size=55),
+            opponent=OpponentConfig(kind="polyak"),
             games_per_iteration=60,
             iterations_per_chunk=1,
+        ),
+        run=RunConfig(
+            iterations=5000,
             eval_every=10,
             eval_games=50,
             checkpoint_every=10,
@@ -436,13 +514,17 @@ def _two_v_two_gpu() -> TrainConfig:
     # so each step takes a large minibatch (20 steps an iteration instead of 40). What it gave on
     # an H200 is in docs/results/scaling.md.
     config = _two_v_two()
+    learner = config.learner
     return dataclasses.replace(
         config,
         preset="2v2-gpu",
-        ppo=dataclasses.replace(config.ppo, batch_size=2048, minibatch_size=512),
+        learner=dataclasses.replace(
+            learner,
+            ppo=dataclasses.replace(learner.ppo, minibatch_size=512),
+            games_per_iteration=1024,
+        ),
         run=dataclasses.replace(
             config.run,
-            games_per_iteration=1024,
             eval_every=50,
             eval_games=200,
             checkpoint_every=50,
@@ -462,13 +544,14 @@ and the 4-player setting with batches for one GPU."""
 
 
 def make_config(preset: str = "quickstart", **overrides: Any) -> TrainConfig:
-    """A validated config: ``preset`` plus overrides named by dotted paths.
+    """A validated config: ``preset`` plus overrides named as the flags are, with underscores.
 
-    Example: ``make_config("2v2", **{"ppo.learning_rate": 3e-4, "run.iterations": 10})``; the
-    separator may also be a double underscore (``run__iterations=10``) to pass them as keywords.
-    A whole group may be given too (``env=EnvConfig(...)``). Raises ``ValueError`` for an unknown
-    preset (naming the allowed ones), an unknown field (naming the allowed fields), or any value
-    that ``validate`` rejects; nothing is compiled.
+    Example: ``make_config("2v2", **{"ppo.learning_rate": 3e-4, "env.episode_length": 200,
+    "games_per_iteration": 32, "run.iterations": 10})``; the separator may also be a double
+    underscore (``run__iterations=10``) to pass them as keywords. A whole group may be given
+    too (``ppo=PPOHyperparams(...)``, ``env=EnvConfig(...)``, ``learner=...``). Raises
+    ``ValueError`` for an unknown preset (naming the allowed ones), an unknown field (naming the
+    allowed fields), or any value that ``validate`` rejects; nothing is compiled.
     """
     if preset not in PRESETS:
         raise ValueError(
@@ -478,50 +561,85 @@ def make_config(preset: str = "quickstart", **overrides: Any) -> TrainConfig:
     return apply_overrides(config, overrides).validate()
 
 
+RENAMED_IN_V2 = {
+    "env.scenario": "env.players_per_team (an int)",
+    "ppo.batch_size": "nothing: the batch is games_per_iteration x players",
+    "run.games_per_iteration": "games_per_iteration",
+    "run.iterations_per_chunk": "iterations_per_chunk",
+}
+"""Version 1's override names that no longer exist, and what replaces them."""
+
+
+def short_path(path: str) -> str:
+    """A field's name as its flag has it: 'learner.env.game.kick_impulse' -> 'env.kick_impulse',
+    'learner.games_per_iteration' -> 'games_per_iteration', 'run.seed' -> 'run.seed'."""
+    path = path.removeprefix("learner.")
+    return "env." + path.removeprefix("env.game.") if path.startswith("env.game.") else path
+
+
+def config_paths(config: TrainConfig) -> dict[str, str]:
+    """Short name (``short_path``) -> path of every group and field of ``config``."""
+    paths: dict[str, str] = {}
+
+    def walk(node: Any, prefix: str) -> None:
+        for field in dataclasses.fields(node):
+            path = f"{prefix}{field.name}"
+            paths[short_path(path)] = path
+            value = getattr(node, field.name)
+            if dataclasses.is_dataclass(value):
+                walk(value, path + ".")
+
+    walk(config, "")
+    return paths
+
+
 def apply_overrides(config: TrainConfig, overrides: Mapping[str, Any]) -> TrainConfig:
-    """``config`` with fields replaced by dotted path (see ``make_config``); not validated."""
-    by_group: dict[str, dict[str, Any]] = {}
-    top: dict[str, Any] = {}
-    group_names = [f.name for f in dataclasses.fields(TrainConfig)]
+    """``config`` with fields replaced by short name (see ``make_config``); not validated
+    beyond what each group checks on construction (EnvParams and PPOHyperparams do)."""
+    paths = config_paths(config)
+    by_parent: dict[str, dict[str, Any]] = {}
     for raw_name, value in overrides.items():
         name = raw_name.replace("__", ".")
-        group, _, field = name.partition(".")
-        if group not in group_names:
+        if name not in paths:
+            group = name.rpartition(".")[0]
+            allowed = sorted(k for k in paths if k.rpartition(".")[0] == group) or sorted(paths)
+            hint = f" (renamed in config version 2: use {RENAMED_IN_V2[name]})" if (
+                name in RENAMED_IN_V2) else ""
             raise ValueError(
-                f"override {raw_name!r}: unknown config group {group!r}; allowed groups are "
-                f"{', '.join(group_names)}"
-            )
-        if not field:
-            top[group] = value
-            continue
-        group_type = type(getattr(config, group))
-        allowed = [f.name for f in dataclasses.fields(group_type)]
-        if field not in allowed:
-            raise ValueError(
-                f"override {raw_name!r}: {group} has no field {field!r}; allowed fields are "
+                f"override {raw_name!r}: unknown field{hint}; allowed names are "
                 f"{', '.join(allowed)}"
             )
-        by_group.setdefault(group, {})[field] = value
-    if top:
-        config = dataclasses.replace(config, **top)
-    changes: dict[str, Any] = {}
-    for group, fields in by_group.items():
-        if group == "ppo":
-            changes[group] = _replace_ppo(config.ppo, fields)
-        else:
-            changes[group] = dataclasses.replace(getattr(config, group), **fields)
-    return dataclasses.replace(config, **changes)
+        parent, _, field = paths[name].rpartition(".")
+        by_parent.setdefault(parent, {})[field] = value
+    # Whole groups before the fields inside them.
+    for parent in sorted(by_parent, key=lambda path: path.count(".") if path else -1):
+        config = _replace_at(config, parent, by_parent[parent])
+    return config
 
 
-def _replace_ppo(ppo: PPOHyperparams, fields: Mapping[str, Any]) -> PPOHyperparams:
-    """PPOHyperparams validates itself on construction; check the cases it words less clearly
-    first, and prefix its own errors with the group name."""
-    merged = {**dataclasses.asdict(ppo), **fields}
-    _check_ppo_extras(merged)
+def _replace_at(config: TrainConfig, parent: str, fields: Mapping[str, Any]) -> TrainConfig:
+    """``config`` with ``fields`` of the group at ``parent`` ('' for the top) replaced."""
+    names = parent.split(".") if parent else []
+
+    def rebuild(node: Any, depth: int) -> Any:
+        if depth == len(names):
+            label = short_path(f"{parent}.x").rpartition(".")[0] if parent else ""
+            return _replace_group(node, fields, label)
+        child = rebuild(getattr(node, names[depth]), depth + 1)
+        return dataclasses.replace(node, **{names[depth]: child})
+
+    return typing.cast(TrainConfig, rebuild(config, 0))
+
+
+def _replace_group(node: Any, fields: Mapping[str, Any], name: str) -> Any:
+    """EnvParams and PPOHyperparams check themselves on construction; their errors get the
+    group's name, and the PPO cases they word less clearly are checked first."""
+    if isinstance(node, PPOHyperparams):
+        _check_ppo_extras({**dataclasses.asdict(node), **fields})
     try:
-        return PPOHyperparams(**merged)
+        return dataclasses.replace(node, **fields)
     except ValueError as error:
-        raise ValueError(f"ppo: {error}") from None
+        raise ValueError(f"{name}: {error}" if name else str(error)) from None
 
 
 # --------------------------------------------------------------------------------------------
@@ -577,13 +695,8 @@ def _check_ppo_extras(fields: Mapping[str, Any]) -> None:
         _is_number(lr) and math.isfinite(lr) and lr > 0,
         f"ppo.learning_rate={lr!r} is invalid: it must be a finite number > 0",
     )
-    for name in ("batch_size", "minibatch_size", "epochs"):
+    for name in ("minibatch_size", "epochs"):
         _int_at_least(f"ppo.{name}", fields[name], 1)
-    if fields["minibatch_size"] > fields["batch_size"]:
-        raise ValueError(
-            f"ppo.minibatch_size={fields['minibatch_size']} is invalid: it is larger than "
-            f"ppo.batch_size={fields['batch_size']}; it must divide the batch"
-        )
     for name in ("policy_weight", "value_weight", "entropy_weight"):
         value = fields[name]
         _require(
@@ -595,45 +708,33 @@ def _check_ppo_extras(fields: Mapping[str, Any]) -> None:
 def validate(config: TrainConfig) -> None:
     """Check every field of ``config``; raise ``ValueError`` naming the first bad one."""
     _require(isinstance(config, TrainConfig), f"expected a TrainConfig, got {type(config)}")
-    _validate_env(config.env)
-    _validate_network(config.network, config.env.players_per_team)
-    _validate_run(config.run)  # before the batch check, which divides by run fields
-    _validate_ppo(config)
-    _validate_opponent(config.opponent)
-    _validate_mix(config)
-    _validate_opponent_mix(config)
+    _require(
+        isinstance(config.learner, LearnerConfig),
+        f"learner must be a LearnerConfig, got {type(config.learner).__name__}",
+    )
+    _validate_run(config.run)
+    validate_learner(config.learner)
+
+
+def validate_learner(learner: LearnerConfig) -> None:
+    """Check every field of ``learner``; raise ``ValueError`` naming the first bad one."""
+    _require(isinstance(learner, LearnerConfig), f"expected a LearnerConfig, got {type(learner)}")
+    _validate_env(learner.env)
+    _validate_network(learner.network)
+    _int_at_least("games_per_iteration", learner.games_per_iteration, 1)
+    _int_at_least("iterations_per_chunk", learner.iterations_per_chunk, 1)
+    _validate_ppo(learner)
+    _validate_opponent(learner.opponent)
+    _validate_mix(learner)
+    _validate_opponent_mix(learner)
 
 
 def _validate_env(env: EnvConfig) -> None:
-    match = _SCENARIO.match(env.scenario) if isinstance(env.scenario, str) else None
+    # EnvParams checks its own fields on construction (a from_dict or a flag included).
     _require(
-        match is not None
-        and match.group(1) == match.group(2)
-        and 1 <= int(match.group(1)) <= MAX_PLAYERS_PER_TEAM,
-        _scenario_error(env.scenario),
+        isinstance(env.game, EnvParams),
+        f"env.game must be an EnvParams, got {type(env.game).__name__}",
     )
-    _require(
-        env.spawn in SPAWN_MODES,
-        f"env.spawn={env.spawn!r} is invalid: allowed values are {SPAWN_MODES}",
-    )
-    _require(
-        env.ball_spawn in BALL_SPAWN_MODES,
-        f"env.ball_spawn={env.ball_spawn!r} is invalid: allowed values are {BALL_SPAWN_MODES}",
-    )
-    _int_at_least("env.episode_length", env.episode_length, 1)
-    for name in ("field_length", "field_width", "goal_width"):
-        _positive(f"env.{name}", getattr(env, name))
-    _require(
-        env.goal_width <= env.field_width,
-        f"env.goal_width={env.goal_width!r} is invalid: it must not exceed "
-        f"env.field_width={env.field_width!r}",
-    )
-    for name in ("ball_shaping_weight", "approach_shaping_weight"):
-        value = getattr(env, name)
-        _require(
-            _is_number(value) and math.isfinite(value) and value >= 0,
-            f"env.{name}={value!r} is invalid: it must be a finite number >= 0",
-        )
     _require(
         isinstance(env.shaping_schedule, bool),
         f"env.shaping_schedule={env.shaping_schedule!r} is invalid: it must be True or False",
@@ -648,8 +749,8 @@ def _players_of(scenario: str) -> int:
     return int(match.group(1))
 
 
-def _validate_mix(config: TrainConfig) -> None:
-    env, ppo = config.env, config.ppo
+def _validate_mix(learner: LearnerConfig) -> None:
+    env, ppo = learner.env, learner.ppo
     _require(
         isinstance(env.mix, tuple) and isinstance(env.mix_shares, tuple),
         "env.mix and env.mix_shares must be tuples",
@@ -667,30 +768,31 @@ def _validate_mix(config: TrainConfig) -> None:
     _require(
         env.scenario not in env.mix and len(set(env.mix)) == len(env.mix),
         f"env.mix={env.mix!r} is invalid: its games must differ from each other and from "
-        f"env.scenario={env.scenario!r}",
+        f"the main game ({env.scenario}, env.players_per_team={env.players_per_team})",
     )
     _require(
         len(env.mix_shares) == len(env.mix)
         and all(_is_number(share) and 0 < share < 1 for share in env.mix_shares)
         and sum(env.mix_shares) < 1,
         f"env.mix_shares={env.mix_shares!r} is invalid: give one share in (0, 1) per game of "
-        f"env.mix={env.mix!r}, summing to less than 1 (env.scenario has the rest)",
+        f"env.mix={env.mix!r}, summing to less than 1 (the main game has the rest)",
     )
+    batch = learner.batch_size
     for scenario in env.mix:
         n = _players_of(scenario)
         _require(
-            ppo.batch_size % n == 0 and ppo.minibatch_size % n == 0,
-            f"env.mix={env.mix!r} is invalid with ppo.batch_size={ppo.batch_size} and "
-            f"ppo.minibatch_size={ppo.minibatch_size}: both count player sequences, and a "
-            f"{scenario} iteration needs multiples of {n} (whole games)",
+            batch % n == 0 and ppo.minibatch_size % n == 0,
+            f"env.mix={env.mix!r} is invalid with a batch of {batch} player sequences "
+            f"(games_per_iteration x players) and ppo.minibatch_size={ppo.minibatch_size}: "
+            f"a {scenario} iteration needs multiples of {n} (whole games)",
         )
     _require(
-        config.opponent.kind != "league",
+        learner.opponent.kind != "league",
         "env.mix is invalid with opponent.kind='league': the league plays one snapshot per "
         "game, and the sizes differ in games per iteration; use 'polyak' or 'self'",
     )
     _require(
-        config.network.use_attention,
+        learner.network.use_attention,
         "env.mix is invalid with network.use_attention=False: the feedforward network's first "
         "layer fits one team size",
     )
@@ -700,19 +802,19 @@ SELF = "self"
 """The name of the self-play opponent (``opponent.kind``) in ``opponent.mix``."""
 
 
-def opponent_mix(config: TrainConfig) -> list[tuple[str, int]]:
+def opponent_mix(learner: LearnerConfig) -> list[tuple[str, int]]:
     """``opponent.mix`` as (team spec, games an iteration), self-play (``SELF``) first, then the
     fixed teams in their order; every game has one opponent. Self-play may have 0 games."""
-    games = config.run.games_per_iteration
-    entries = [_mix_entry(entry) for entry in config.opponent.mix]
+    games = learner.games_per_iteration
+    entries = [_mix_entry(entry) for entry in learner.opponent.mix]
     fixed = [(spec, share) for spec, share in entries if spec != SELF]
     counts = [(spec, round(share * games)) for spec, share in fixed]
     return [(SELF, games - sum(count for _, count in counts)), *counts]
 
 
-def self_play_games(config: TrainConfig) -> int:
+def self_play_games(learner: LearnerConfig) -> int:
     """Games an iteration against ``opponent.kind`` (all of them without ``opponent.mix``)."""
-    return opponent_mix(config)[0][1]
+    return opponent_mix(learner)[0][1]
 
 
 def _mix_entry(entry: str) -> tuple[str, float]:
@@ -720,23 +822,26 @@ def _mix_entry(entry: str) -> tuple[str, float]:
     return spec, float(share)
 
 
-def scenario_config(config: TrainConfig, scenario: str) -> TrainConfig:
-    """The one-size config that plays ``scenario``'s iterations of a mixed run: the same batch
-    and minibatch in player sequences, batch_size / n games, no mix."""
+def scenario_config(learner: LearnerConfig, scenario: str) -> LearnerConfig:
+    """The one-size learner that plays ``scenario``'s iterations of a mixed run: the same batch
+    and minibatch in player sequences, batch / n games, no mix."""
     n = _players_of(scenario)
+    env = learner.env
     return dataclasses.replace(
-        config,
-        env=dataclasses.replace(config.env, scenario=scenario, mix=(), mix_shares=()),
-        run=dataclasses.replace(config.run, games_per_iteration=config.ppo.batch_size // n),
+        learner,
+        env=dataclasses.replace(
+            env, game=dataclasses.replace(env.game, players_per_team=n), mix=(), mix_shares=()
+        ),
+        games_per_iteration=learner.batch_size // n,
     )
 
 
-def mix_schedule(config: TrainConfig, chunks: int) -> list[str]:
+def mix_schedule(learner: LearnerConfig, chunks: int) -> list[str]:
     """The game each of the first ``chunks`` chunks of a run plays: at every chunk the game
-    furthest below its share (``env.scenario`` first on ties). Deterministic, so a resumed run
+    furthest below its share (the main game first on ties). Deterministic, so a resumed run
     follows the same schedule."""
-    games = (config.env.scenario, *config.env.mix)
-    shares = (1.0 - sum(config.env.mix_shares), *config.env.mix_shares)
+    games = (learner.env.scenario, *learner.env.mix)
+    shares = (1.0 - sum(learner.env.mix_shares), *learner.env.mix_shares)
     played = [0] * len(games)
     schedule = []
     for chunk in range(chunks):
@@ -747,7 +852,7 @@ def mix_schedule(config: TrainConfig, chunks: int) -> list[str]:
     return schedule
 
 
-def _validate_network(network: NetworkConfig, players_per_team: int) -> None:
+def _validate_network(network: NetworkConfig) -> None:
     for name in ("features", "num_heads", "lstm_features", "lstm_layers"):
         _int_at_least(f"network.{name}", getattr(network, name), 1)
     _require(
@@ -763,25 +868,18 @@ def _validate_network(network: NetworkConfig, players_per_team: int) -> None:
         )
 
 
-def _validate_ppo(config: TrainConfig) -> None:
-    ppo = config.ppo
+def _validate_ppo(learner: LearnerConfig) -> None:
+    ppo = learner.ppo
     _require(
         isinstance(ppo, PPOHyperparams), f"ppo must be a PPOHyperparams, got {type(ppo).__name__}"
     )
     _check_ppo_extras(dataclasses.asdict(ppo))
-    units = config.units_per_iteration
-    n = config.players_per_team
-    _require(
-        ppo.batch_size == units,
-        f"ppo.batch_size={ppo.batch_size} is invalid: the batch is the learner's player "
-        f"sequences per iteration, run.games_per_iteration * players_per_team = "
-        f"{config.run.games_per_iteration} * {n} = {units}; set ppo.batch_size={units} (or "
-        f"run.games_per_iteration={ppo.batch_size // n if ppo.batch_size % n == 0 else '?'})",
-    )
+    units, n = learner.batch_size, learner.players_per_team
     _require(
         units % ppo.minibatch_size == 0,
         f"ppo.minibatch_size={ppo.minibatch_size} is invalid: it must divide the batch of "
-        f"{units} player sequences",
+        f"{units} player sequences (games_per_iteration x players = "
+        f"{learner.games_per_iteration} x {n})",
     )
     if ppo.minibatch_size % n != 0:
         fits = [m for m in range(n, units + 1, n) if units % m == 0]
@@ -818,8 +916,8 @@ def _validate_opponent(opponent: OpponentConfig) -> None:
     )
 
 
-def _validate_opponent_mix(config: TrainConfig) -> None:
-    mix = config.opponent.mix
+def _validate_opponent_mix(learner: LearnerConfig) -> None:
+    mix = learner.opponent.mix
     if not mix:
         return
     form = (
@@ -848,27 +946,27 @@ def _validate_opponent_mix(config: TrainConfig) -> None:
         f"opponent.mix={mix!r} is invalid: the shares sum to {total:g}; with 'self=...' they "
         "must sum to 1, without it to at most 1 (self-play plays the rest)",
     )
-    games = config.run.games_per_iteration
+    games = learner.games_per_iteration
     for spec, value in entries:
         count = round(value * games)
         _require(
             spec == SELF or count >= 1,
-            f"opponent.mix entry {spec}={value:g} is invalid with run.games_per_iteration="
+            f"opponent.mix entry {spec}={value:g} is invalid with games_per_iteration="
             f"{games}: it gives {value * games:g} games, round to at least 1",
         )
-    self_games = self_play_games(config)
+    self_games = self_play_games(learner)
     _require(
         self_games >= 0,
-        f"opponent.mix={mix!r} is invalid with run.games_per_iteration={games}: the rounded "
+        f"opponent.mix={mix!r} is invalid with games_per_iteration={games}: the rounded "
         "games of the fixed teams exceed the games of an iteration",
     )
     _require(
-        self_games > 0 or config.opponent.kind != "league",
+        self_games > 0 or learner.opponent.kind != "league",
         "opponent.mix without self-play is invalid with opponent.kind='league': the league "
         "learns from its own games",
     )
     _require(
-        not config.env.mix,
+        not learner.env.mix,
         "opponent.mix is invalid with env.mix: mixed sizes play one opponent per chunk",
     )
 
@@ -880,8 +978,6 @@ def _validate_run(run: RunConfig) -> None:
         f"run.max_minutes={run.max_minutes!r} is invalid: it must be a finite number of "
         "minutes >= 0 (0: no time budget)",
     )
-    _int_at_least("run.games_per_iteration", run.games_per_iteration, 1)
-    _int_at_least("run.iterations_per_chunk", run.iterations_per_chunk, 1)
     _int_at_least("run.eval_every", run.eval_every, 0)
     _int_at_least("run.eval_games", run.eval_games, 1)
     _int_at_least("run.checkpoint_every", run.checkpoint_every, 0)
@@ -962,7 +1058,7 @@ def _has_default(field: dataclasses.Field[Any]) -> bool:
 def load_config(path: str | Path) -> TrainConfig:
     """A TrainConfig from a JSON file (e.g. a checkpoint's ``config.json``), which may be from
     an older version (see ``TrainConfig.from_dict``'s ``fill_missing``)."""
-    return TrainConfig.from_dict(json.loads(Path(path).read_text(encoding="utf-8")), True)
+    return TrainConfig.from_saved(json.loads(Path(path).read_text(encoding="utf-8")), str(path))
 
 
 RESUMABLE_FIELDS: tuple[str, ...] = (
@@ -970,7 +1066,7 @@ RESUMABLE_FIELDS: tuple[str, ...] = (
     "run.iterations",
     "run.max_minutes",
     "run.init_from",
-    "run.iterations_per_chunk",
+    "learner.iterations_per_chunk",
     "run.eval_every",
     "run.eval_games",
     "run.eval_teams",
@@ -981,12 +1077,14 @@ RESUMABLE_FIELDS: tuple[str, ...] = (
     "run.write_plot",
     "run.write_gif",
 )
-"""Fields a resumed run may change: they steer the host loop, not what is computed. Everything
-else must equal the checkpoint's config (a run cannot silently continue as another run)."""
+"""Fields (paths) a resumed run may change: they steer the host loop, or, like K, do not change
+what is computed. Everything else must equal the checkpoint's config (a run cannot silently
+continue as another run); seed and devices too."""
 
 
 def config_differences(saved: TrainConfig, current: TrainConfig) -> list[str]:
-    """'path: saved -> current' for every differing field outside ``RESUMABLE_FIELDS``."""
+    """'name: saved -> current' for every differing field outside ``RESUMABLE_FIELDS``, named
+    as its flag is (``short_path``)."""
     differences = []
 
     def walk(a: Any, b: Any, path: str) -> None:
@@ -995,7 +1093,7 @@ def config_differences(saved: TrainConfig, current: TrainConfig) -> list[str]:
                 name = f"{path}.{field.name}" if path else field.name
                 walk(getattr(a, field.name), getattr(b, field.name), name)
         elif a != b and path not in RESUMABLE_FIELDS:
-            differences.append(f"{path}: {a!r} -> {b!r}")
+            differences.append(f"{short_path(path)}: {a!r} -> {b!r}")
 
     walk(saved, current, "")
     return differences

@@ -1,4 +1,4 @@
-"""The learner: ``make_learner(config)`` gives pure ``init`` and ``update_chunk``.
+"""The learner: ``make_learner(LearnerConfig)`` gives pure ``init`` and ``update_chunk``.
 
 One iteration (thesis Algorithm 4) compiles into one program, and this file reads in its order:
 
@@ -47,12 +47,10 @@ from elevens.teams.base import Team
 from elevens.train import opponents as opp
 from elevens.train import parallel, ppo
 from elevens.train.config import (
-    RESUMABLE_FIELDS,
-    RunConfig,
-    TrainConfig,
+    LearnerConfig,
     opponent_mix,
     self_play_games,
-    validate,
+    validate_learner,
 )
 from elevens.train.opponents import OpponentState, OpponentStrategy
 from elevens.train.rollout import FixedOpponent, Rollout, rollout
@@ -101,7 +99,7 @@ class Setup:
     """What the stages of an iteration share: the config's static parts, built once. Compared
     and hashed by identity (it keys the compile caches, and a mix team's params are arrays)."""
 
-    config: TrainConfig
+    config: LearnerConfig
     env: Soccer
     env_params: EnvParams
     policy: AttentionPolicy
@@ -121,7 +119,7 @@ class Setup:
 
     @property
     def games(self) -> int:
-        return self.config.run.games_per_iteration
+        return self.config.games_per_iteration
 
     def shard_games(self, tree: Any) -> Any:
         return parallel.game_constraint(self.mesh)(tree)
@@ -146,7 +144,7 @@ def collect(setup: Setup, state: TrainState, rollout_key: jax.Array) -> Rollout:
     """1. Algorithm 4 lines 4-11: one episode of every game, shaping as currently in force."""
     env_config = setup.config.env
     weights = shaping_weights(
-        state.shaping, env_config.ball_shaping_weight, env_config.approach_shaping_weight
+        state.shaping, env_config.game.ball_shaping_weight, env_config.game.approach_shaping_weight
     )
     # The weights are pytree leaves of EnvParams: a new value is not a recompile.
     shaping: dict[str, Any] = {
@@ -162,7 +160,7 @@ def collect(setup: Setup, state: TrainState, rollout_key: jax.Array) -> Rollout:
         setup.opponent.act_params(state.opponent),
         rollout_key,
         num_games=setup.games,
-        num_steps=env_config.episode_length,
+        num_steps=env_config.game.episode_length,
         opponent_per_game=setup.opponent.per_game,
         constrain_games=setup.shard_games,
         fixed_opponents=setup.fixed_opponents,
@@ -237,7 +235,7 @@ def learn(
         batch,
         shuffle_key,
         epochs=hp.epochs,
-        num_minibatches=hp.num_minibatches,
+        num_minibatches=setup.config.num_minibatches,
         value_and_grad_fn=setup.value_and_grad,
         constrain_minibatches=setup.shard_minibatch_games,
     )
@@ -350,12 +348,12 @@ def metric_label(spec: str) -> str:
 @dataclasses.dataclass(frozen=True)
 class Learner:
     """Pure functions of one config. ``init(key, start=None) -> TrainState``;
-    ``update_chunk(state) -> (state, metrics)`` runs K = ``config.run.iterations_per_chunk``
+    ``update_chunk(state) -> (state, metrics)`` runs K = ``config.iterations_per_chunk``
     iterations (jitted; metrics are ``{name: f32[K]}``); ``update(state, num_iterations)``
     another number (compiled once per number). ``iteration``, ``collect``, ``learn``,
     ``improve`` and ``metrics`` are the stages above bound to this config, not jitted."""
 
-    config: TrainConfig
+    config: LearnerConfig
     setup: Setup
     init: Callable[..., TrainState]
     update_chunk: Callable[[TrainState], tuple[TrainState, Metrics]]
@@ -409,12 +407,12 @@ class Learner:
         return functools.partial(iteration_metrics, self.setup)
 
     def update(self, state: TrainState, num_iterations: int) -> tuple[TrainState, Metrics]:
-        if num_iterations == self.config.run.iterations_per_chunk:
+        if num_iterations == self.config.iterations_per_chunk:
             return self.update_chunk(state)
         return _scan_iterations(self.setup, num_iterations)(state)
 
 
-def make_optimizer(config: TrainConfig) -> optax.GradientTransformation:
+def make_optimizer(config: LearnerConfig) -> optax.GradientTransformation:
     """Adam with the config's learning rate (table 6.1: 1e-4), one optimiser for both networks
     (Algorithm 4 lines 22-23 step policy and critic on the same objective J)."""
     return optax.adam(config.ppo.learning_rate)
@@ -426,65 +424,54 @@ TeamLoader = Callable[[str, EnvParams, str], Team]
 layer's, above this one)."""
 
 
-def make_learner(config: TrainConfig, load_team: TeamLoader | None = None) -> Learner:
-    """Build the pure functions of ``config`` (validated first: nothing compiles on a bad one).
-    ``load_team`` loads the fixed teams of ``opponent.mix``; a config with such teams needs it.
+def make_learner(
+    config: LearnerConfig, load_team: TeamLoader | None = None, *, devices: int = 0
+) -> Learner:
+    """Build the pure functions of ``config`` (validated first: nothing compiles on a bad one)
+    on ``devices`` (``parallel.data_mesh``: 0 = all). ``load_team`` loads the fixed teams of
+    ``opponent.mix``; a config with such teams needs it.
 
-    They depend only on what is computed, not on the host loop's fields (``RESUMABLE_FIELDS``
-    but K), so they are cached on the rest: building the same run again in one process (a
-    resume, a longer run, another run_dir) reuses the compiled chunk.
+    They are cached on their arguments: building the same learner again in one process (a
+    resume, a longer run, another run directory) reuses the compiled chunk.
     """
-    validate(config)
+    validate_learner(config)
     if load_team is None and len(opponent_mix(config)) > 1:
         raise ValueError(
             f"opponent.mix={config.opponent.mix!r} names fixed teams: pass load_team "
             "(elevens.runs.teams.team_on_field) to make_learner, or train with elevens.runs.train"
         )
-    core = _build_learner(_computation_config(config), load_team)
-    return dataclasses.replace(core, config=config)
+    return _build_learner(config, load_team, devices)
 
 
-def train_state_shape(config: TrainConfig) -> TrainState:
+def train_state_shape(config: LearnerConfig, devices: int = 0) -> TrainState:
     """The TrainState of ``config`` as shapes (``jax.eval_shape``), nothing computed or loaded:
     the target a checkpoint restores into."""
-    setup = make_setup(config.validate())
+    setup = make_setup(config.validate(), devices=devices)
     return cast(TrainState, jax.eval_shape(functools.partial(init_state, setup), jax.random.key(0)))
 
 
-def _computation_config(config: TrainConfig) -> TrainConfig:
-    """``config`` with the host-loop fields set to their defaults (K is kept: it is compiled in)."""
-    chunk = config.run.iterations_per_chunk
-    defaults = dataclasses.replace(RunConfig(), iterations_per_chunk=chunk)
-    overrides = {
-        path.split(".", 1)[1]: getattr(defaults, path.split(".", 1)[1])
-        for path in RESUMABLE_FIELDS
-        if path.startswith("run.")
-    }
-    return dataclasses.replace(
-        config, preset="", run=dataclasses.replace(config.run, **overrides)
-    )
-
-
 @functools.lru_cache(maxsize=8)
-def _build_learner(config: TrainConfig, load_team: TeamLoader | None) -> Learner:
-    setup = make_setup(config, load_team)
+def _build_learner(config: LearnerConfig, load_team: TeamLoader | None, devices: int) -> Learner:
+    setup = make_setup(config, load_team, devices)
     return Learner(
         config=config,
         setup=setup,
         # Not jitted as a whole: the networks' init is (and is shared, see
         # _network_initializer); the rest is a few zeros and copies.
         init=functools.partial(init_state, setup),
-        update_chunk=_scan_iterations(setup, config.run.iterations_per_chunk),
+        update_chunk=_scan_iterations(setup, config.iterations_per_chunk),
     )
 
 
-def make_setup(config: TrainConfig, load_team: TeamLoader | None = None) -> Setup:
-    """The static parts of an iteration of ``config`` (the fixed teams of ``opponent.mix``
-    only with ``load_team``)."""
-    n = config.env.players_per_team
-    env_params = config.env.env_params()
+def make_setup(
+    config: LearnerConfig, load_team: TeamLoader | None = None, devices: int = 0
+) -> Setup:
+    """The static parts of an iteration of ``config`` on ``devices`` (the fixed teams of
+    ``opponent.mix`` only with ``load_team``)."""
+    n = config.players_per_team
+    env_params = config.env.game
     policy, critic = config.network.policy(), config.network.critic()
-    mesh = parallel.data_mesh(config.run.devices)
+    mesh = parallel.data_mesh(devices)
     _check_device_split(config, mesh)
     hp = config.ppo
     loss = functools.partial(ppo.sequence_loss, policy, critic, hp)
@@ -507,7 +494,7 @@ def make_setup(config: TrainConfig, load_team: TeamLoader | None = None) -> Setu
     )
 
 
-def make_opponent(config: TrainConfig) -> OpponentStrategy:
+def make_opponent(config: LearnerConfig) -> OpponentStrategy:
     """The training opponent of ``config.opponent``."""
     o = config.opponent
     return opp.make_opponent(
@@ -577,10 +564,10 @@ def _scan_iterations(
 
 
 def _fixed_opponents(
-    config: TrainConfig, env_params: EnvParams, load_team: TeamLoader
+    config: LearnerConfig, env_params: EnvParams, load_team: TeamLoader
 ) -> tuple[FixedOpponent, ...]:
     """The teams of ``opponent.mix`` (not self-play), loaded once per learner."""
-    n = config.env.players_per_team
+    n = config.players_per_team
     fixed = []
     for spec, games in opponent_mix(config)[1:]:
         team = load_team(spec, env_params, "opponent.mix")
@@ -592,17 +579,17 @@ def _fixed_opponents(
     return tuple(fixed)
 
 
-def opponent_index_count(config: TrainConfig) -> int:
+def opponent_index_count(config: LearnerConfig) -> int:
     """Length of ``OpponentState.indices``: one per self-play game, and at least one (a
     checkpoint cannot hold an empty array; without self-play nothing reads it)."""
     return max(self_play_games(config), 1)
 
 
-def _check_device_split(config: TrainConfig, mesh: Mesh) -> None:
+def _check_device_split(config: LearnerConfig, mesh: Mesh) -> None:
     """Every device plays an equal share of the games and of each minibatch's games."""
-    n = config.env.players_per_team
+    n = config.players_per_team
     parallel.check_divisible(
-        "run.games_per_iteration", config.run.games_per_iteration, mesh,
+        "games_per_iteration", config.games_per_iteration, mesh,
         "or choose the devices with --run.devices",
     )
     games = config.ppo.minibatch_size // n

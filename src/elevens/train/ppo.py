@@ -59,11 +59,11 @@ class PPOHyperparams:
     """Learning rate of the Adam optimiser (table 6.1)."""
     epochs: int = 5
     """epochs_per_step (Algorithm 4, table 6.1, section 5.2.2: 5 instead of PPO's usual more)."""
-    batch_size: int = 660
-    """Experience batch size (table 6.1). The thesis does not name the unit; here it counts the
-    sampling units of ``update_epochs`` (one game-team-player sequence for the recurrent policy)."""
     minibatch_size: int = 60
-    """Mini-batch size (table 6.1), in the unit of ``batch_size``: 660 / 60 = 11 minibatches."""
+    """Mini-batch size (table 6.1), in the sampling units of ``update_epochs``: one
+    game-team-player sequence for the recurrent policy. Table 6.1's batch of 660 such sequences
+    is not a field here: it is games per iteration x players (``LearnerConfig.batch_size``), so
+    660 / 60 = 11 minibatches."""
     clip_epsilon: float = 0.1
     """PPO clipping value epsilon_p (table 6.1, section 5.2.1: 0.1 instead of PPO's 0.2)."""
     policy_weight: float = 1.0
@@ -113,26 +113,15 @@ class PPOHyperparams:
             )
         if self.epochs < 1:
             raise ValueError(f"epochs={self.epochs!r} is invalid: it must be >= 1")
-        if self.minibatch_size < 1 or self.batch_size < 1:
+        if self.minibatch_size < 1:
             raise ValueError(
-                f"batch_size={self.batch_size!r}, minibatch_size={self.minibatch_size!r} are "
-                "invalid: both must be >= 1"
-            )
-        if self.batch_size % self.minibatch_size != 0:
-            raise ValueError(
-                f"minibatch_size={self.minibatch_size} does not divide "
-                f"batch_size={self.batch_size}"
+                f"minibatch_size={self.minibatch_size!r} is invalid: it must be >= 1"
             )
         if self.clip_epsilon <= 0 or self.value_clip_epsilon <= 0:
             raise ValueError(
                 f"clip_epsilon={self.clip_epsilon!r}, value_clip_epsilon="
                 f"{self.value_clip_epsilon!r} are invalid: both must be > 0"
             )
-
-    @property
-    def num_minibatches(self) -> int:
-        """Minibatches per epoch: ``batch_size // minibatch_size`` (11 with table 6.1)."""
-        return self.batch_size // self.minibatch_size
 
 
 # --------------------------------------------------------------------------------------------

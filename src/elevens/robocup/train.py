@@ -24,7 +24,7 @@ import dataclasses
 import json
 import logging
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any, cast
@@ -267,6 +267,23 @@ class _GameLog:
             return 0
         return self.last_time - self.first_time + 1
 
+    def add(self, info: Mapping[str, Any], side: int) -> bool:
+        """Count one step's ``info`` for the learner on ``side``; True if the server restarted
+        (the episode was cut short)."""
+        goals = np.asarray(info["goals"])
+        self.goals_for += int(goals[side])
+        self.goals_against += int(goals[1 - side])
+        self.missed += int(info.get("missed", 0))
+        self.malformed += int(info.get("malformed", 0))
+        self.ball_returned += int(bool(info.get("ball_returned", False)))
+        if "server_time" in info:
+            if self.first_time is None:
+                self.first_time = int(info["server_time"])
+            self.last_time = int(info["server_time"])
+        restarted = bool(info.get("restarted", False))
+        self.restarts += int(restarted)
+        return restarted
+
 
 def play_iteration(
     envs: Sequence[Any],
@@ -342,19 +359,8 @@ def play_iteration(
             approach = np.asarray(info["approach_shaping"])[side]
             terms[:, g] = goal, ball, approach
             rewards[g] = goal + (ball + approach if shaping_active else 0.0)
-            goals = np.asarray(info["goals"])
-            logs[g].goals_for += int(goals[side])
-            logs[g].goals_against += int(goals[1 - side])
-            logs[g].missed += int(info.get("missed", 0))
-            logs[g].malformed += int(info.get("malformed", 0))
-            logs[g].ball_returned += int(bool(info.get("ball_returned", False)))
-            if "server_time" in info:
-                if logs[g].first_time is None:
-                    logs[g].first_time = int(info["server_time"])
-                logs[g].last_time = int(info["server_time"])
-            if info.get("restarted", False):
-                logs[g].restarts += 1
-                done[g] = True  # the episode was cut short; a fresh one starts next step
+            # A restart cuts the episode short; a fresh one starts next step.
+            done[g] = logs[g].add(info, side)
             states[g], observations[g] = state, observation
         if t == T - 1:
             done[:] = True
@@ -366,6 +372,17 @@ def play_iteration(
         ):
             record[name].append(value)
         reset = done.copy()  # the policy zeroes those rows' memories itself (RecurrentCore)
+
+    return _packed_rollout(record, sides, logs, initial_carry, n), logs
+
+
+def _packed_rollout(
+    record: dict[str, list[Any]], sides: np.ndarray, logs: Sequence[_GameLog],
+    initial_carry: Any, n: int,
+) -> Rollout:
+    """The steps ``play_iteration`` recorded (T x [G, ...]) as the ``Rollout`` the compiled
+    rollout makes: player sequences [G * n, T, ...], the game's global state [G, T, ...]."""
+    num_games, T = len(sides), len(record["done"])
 
     def per_player(steps: list[Any]) -> Any:  # T x [G, n, ...] -> [G * n, T, ...]
         stacked = _stack(steps)  # [T, G, n, ...]
@@ -408,7 +425,7 @@ def play_iteration(
         ball_shaping=jnp.asarray(ball_sum[:, 0]),
         approach_shaping=jnp.asarray(approach_sum.mean(axis=-1)),
     )
-    return rollout, logs
+    return rollout
 
 
 def train_robocup(

@@ -10,12 +10,15 @@ import pytest
 from elevens.robocup.protocol import Catch, Dash, Kick, Move, NoOp, Turn
 from elevens.robocup.rules import (
     CATCH_REACH,
+    RECOVERING_DASH,
+    STAMINA_RESERVE,
     TeamView,
     apply_rules,
     kick_off_positions,
     kick_off_taker,
     kicks_off_next,
     mode_kind,
+    pace_dashes,
 )
 
 
@@ -150,3 +153,24 @@ def test_time_over_sends_nothing() -> None:
     commands, _ = apply_rules(POLICY, _view(), "time_over", 0)
     assert commands == [None, None, None]
     assert NoOp() not in commands
+
+
+def test_dashes_are_paced_to_keep_the_stamina_reserve() -> None:
+    commands = [Dash(100.0, 0.0), Dash(100.0, 0.0), Dash(-80.0, 0.0), Kick(50.0, 0.0), None,
+                Dash(100.0, 0.0)]
+    stamina = [8000.0, 3020.0, 2000.0, 100.0, 500.0, None]
+    paced = pace_dashes(commands, stamina)
+    assert paced[0] == Dash(100.0, 0.0)  # plenty left: as the policy asked
+    assert paced[1] == Dash(20.0 + RECOVERING_DASH, 0.0)  # 20 above the reserve, + a walk
+    assert paced[2] == Dash(-RECOVERING_DASH, 0.0)  # below it: walk, in the asked direction
+    assert paced[3] == Kick(50.0, 0.0) and paced[4] is None  # only dashes are paced
+    assert paced[5] == Dash(100.0, 0.0)  # stamina unknown: the dash stands
+    assert pace_dashes([Dash(100.0, 0.0)], [STAMINA_RESERVE + 50.0]) == [Dash(80.0, 0.0)]
+    # With the capacity known, the rest of the half's capacity is spread over its cycles left:
+    # 60,000 over the 1,500 cycles left of the second half is 40 a cycle beyond the reserve.
+    assert pace_dashes([Dash(100.0, 0.0)], [STAMINA_RESERVE], [60_000.0], 4_500) == [
+        Dash(40.0, 0.0)
+    ]
+    assert pace_dashes([Dash(100.0, 0.0)], [STAMINA_RESERVE + 10.0], [0.0], 100) == [
+        Dash(10.0, 0.0)
+    ]  # an empty capacity: only the stamina above the reserve

@@ -63,6 +63,46 @@ SET_PIECES = (
 MOVE_MODES = ("before_kick_off", "goal_l", "goal_r")
 
 
+STAMINA_RESERVE = 3000.0
+"""Stamina a player keeps for itself (server::stamina_max 8000; below effort_dec_thr x max =
+2400 its effort falls for good). Above it a player dashes as the policy asks."""
+RECOVERING_DASH = 30.0
+"""The dash power at or below the reserve when the stamina capacity is unknown: less than the
+stamina a player recovers a cycle (server::stamina_inc_max 45), so it walks while its stamina
+comes back."""
+HALF_CYCLES = 3000
+"""server::half_time x 10: each half restores the players' stamina capacity."""
+
+
+def pace_dashes(
+    commands: Sequence[Command | None],
+    stamina: Sequence[float | None],
+    capacity: Sequence[float | None] | None = None,
+    server_time: int | None = None,
+) -> list[Command | None]:
+    """Each player's dash capped to what its stamina allows; the same for every elevens team,
+    like the set pieces and the catch. A player spends the stamina above
+    ``STAMINA_RESERVE`` freely and, beyond it, its stamina capacity (what recovery can still
+    refill this half) evenly over the cycles left in the half. Without it a team that dashes
+    at full power every cycle (the "sim" rule's ``|move| * 100``) has no stamina left after
+    600 cycles of each half (docs/results/robocup.md, session 15). ``stamina[i]`` and
+    ``capacity[i]``: player i's latest sense_body (None: unknown; an unknown stamina leaves the
+    dash as it is, an unknown capacity allows ``RECOVERING_DASH`` beyond the reserve)."""
+    cycles_left = HALF_CYCLES - (server_time or 0) % HALF_CYCLES
+    capacities = capacity if capacity is not None else [None] * len(commands)
+    paced: list[Command | None] = []
+    for command, left, tank in zip(commands, stamina, capacities, strict=True):
+        if isinstance(command, Dash) and left is not None:
+            steady = RECOVERING_DASH if tank is None else tank / cycles_left
+            spare = max(left - STAMINA_RESERVE, 0.0) + steady
+            if abs(command.power) > spare:
+                command = dataclasses.replace(
+                    command, power=math.copysign(spare, command.power)
+                )
+        paced.append(command)
+    return paced
+
+
 def mode_kind(play_mode: str, side: int) -> str:
     """What a play mode asks of ``side`` (0 left, 1 right): "move" (go to the kick-off
     formation), "ours" (our set piece), "theirs" (theirs: the policy plays, the server keeps us

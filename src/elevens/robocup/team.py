@@ -37,7 +37,13 @@ from elevens.robocup.env import (
 from elevens.robocup.observe import PLAYER_DECAY, PerceptMemory
 from elevens.robocup.play import load_robocup_team
 from elevens.robocup.protocol import ChangeView, Command, ServerParams
-from elevens.robocup.rules import TeamView, apply_rules, kick_off_positions, mode_kind
+from elevens.robocup.rules import (
+    TeamView,
+    apply_rules,
+    kick_off_positions,
+    mode_kind,
+    pace_dashes,
+)
 from elevens.robocup.server import ServerAddress
 
 __all__ = ["RoboCupTeam", "TeamResult"]
@@ -237,6 +243,8 @@ class RoboCupTeam:
                         halves_played=halves,
                         catch_allowed=counts["cycles"] - last_catch >= _CATCH_BAN,
                     )
+                    stamina, capacity = _staminas(cycle, side, n)
+                    commands = pace_dashes(commands, stamina, capacity, int(cycle.server_time))
                 if what == "catch":
                     counts["catches"] += 1
                     last_catch = counts["cycles"]
@@ -284,3 +292,16 @@ def _team_view(memory: PerceptMemory, side: int) -> TeamView:
         stale=memory.stale[side].copy(),
     )
 
+
+def _staminas(cycle: Any, side: int, n: int) -> tuple[list[float | None], list[float | None]]:
+    """Each of the team's players' latest stamina and stamina capacity (unum order; None:
+    unknown)."""
+    stamina: list[float | None] = [None] * n
+    capacity: list[float | None] = [None] * n
+    for player in cycle.players:
+        body = player.sense_body
+        if player.side == side and body is not None and 1 <= player.unum <= n:
+            stamina[player.unum - 1] = float(body.stamina)
+            if body.stamina_capacity is not None:
+                capacity[player.unum - 1] = float(body.stamina_capacity)
+    return stamina, capacity

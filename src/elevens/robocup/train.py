@@ -159,25 +159,7 @@ def make_robocup_config(**overrides: Any) -> RoboCupTrainConfig:
     """The default ``RoboCupTrainConfig`` with fields replaced by their flags' names, as
     ``elevens.train.config.make_config`` names them (``env.players_per_team``,
     ``games_per_iteration``, ``run.iterations``, ...) plus ``server.NAME``; validated."""
-    base = RoboCupTrainConfig()
-    names = {raw.replace("__", "."): value for raw, value in overrides.items()}
-    server = {name: value for name, value in names.items() if name.startswith("server.")}
-    rest = {name: value for name, value in names.items() if name not in server}
-    allowed = [field.name for field in dataclasses.fields(ServerConfig)]
-    unknown = [name for name in server if name.partition(".")[2] not in allowed]
-    if unknown:
-        raise ValueError(
-            f"override {unknown[0]!r}: unknown field; allowed server fields are "
-            f"{', '.join('server.' + name for name in allowed)}"
-        )
-    train = apply_overrides(base.train_config(), rest)
-    return RoboCupTrainConfig(
-        learner=train.learner,
-        run=train.run,
-        server=dataclasses.replace(
-            base.server, **{name.partition(".")[2]: value for name, value in server.items()}
-        ),
-    ).validate()
+    return apply_overrides(RoboCupTrainConfig(), overrides).validate()
 
 
 @dataclasses.dataclass
@@ -486,6 +468,7 @@ class _RoboCupLoop:
         from elevens.runs.logging import RunLogger
 
         self.config, self.layout, self.checkpointer = config, layout, checkpointer
+        self.saved_config = config.train_config()  # what every checkpoint saves
         self.learner, self.state, self.resumed = learner, state, resumed
         self.print_fn, self.began = print_fn, began
         self.improve = jax.jit(learner.improve)
@@ -533,7 +516,7 @@ class _RoboCupLoop:
             for env in envs:
                 env.close()
         if not self.interrupted:
-            self.evaluations.finish(self.state, self.layout, self.config.train_config())
+            self.evaluations.finish(self.state, self.layout, self.saved_config)
 
     def step(self, envs: list[Any], pool: ThreadPoolExecutor | None) -> None:
         """One iteration: an episode on every server, then ``improve``, then its logs."""
@@ -590,7 +573,7 @@ class _RoboCupLoop:
             return cast(Path, self.checkpointer.step_directory(it))
         self.last_saved = it
         return cast(Path, self.checkpointer.save(
-            it, self.state, self.config.train_config().to_dict(),
+            it, self.state, self.saved_config.to_dict(),
             {"iteration": it, "env_steps": it * self.steps, "robocup": True},
         ))
 

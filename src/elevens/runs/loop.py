@@ -588,6 +588,5 @@ def _time_metrics(env_steps: int, seconds: float) -> dict[str, float]:
 def _title(config: TrainConfig) -> str:
     return (
         f"{config.learner.env.scenario} ({config.preset} preset), opponent: "
-        f"{config.learner.opponent.kind}, "
-        f"seed {config.run.seed}"
+        f"{config.learner.opponent.kind}, seed {config.run.seed}"
     )

@@ -561,6 +561,8 @@ def make_config(preset: str = "quickstart", **overrides: Any) -> TrainConfig:
     return apply_overrides(config, overrides).validate()
 
 
+_Config = typing.TypeVar("_Config")
+
 RENAMED_IN_V2 = {
     "env.scenario": "env.players_per_team (an int)",
     "ppo.batch_size": "nothing: the batch is games_per_iteration x players",
@@ -577,8 +579,9 @@ def short_path(path: str) -> str:
     return "env." + path.removeprefix("env.game.") if path.startswith("env.game.") else path
 
 
-def config_paths(config: TrainConfig) -> dict[str, str]:
-    """Short name (``short_path``) -> path of every group and field of ``config``."""
+def config_paths(config: Any) -> dict[str, str]:
+    """Short name (``short_path``) -> path of every group and field of ``config`` (a
+    ``TrainConfig``, or any dataclass holding a ``learner`` the same way)."""
     paths: dict[str, str] = {}
 
     def walk(node: Any, prefix: str) -> None:
@@ -593,9 +596,11 @@ def config_paths(config: TrainConfig) -> dict[str, str]:
     return paths
 
 
-def apply_overrides(config: TrainConfig, overrides: Mapping[str, Any]) -> TrainConfig:
-    """``config`` with fields replaced by short name (see ``make_config``); not validated
-    beyond what each group checks on construction (EnvParams and PPOHyperparams do)."""
+def apply_overrides(config: _Config, overrides: Mapping[str, Any]) -> _Config:
+    """``config`` (a ``TrainConfig``, or one that holds a ``learner`` the same way, e.g.
+    ``RoboCupTrainConfig``) with fields replaced by short name (see ``make_config``); not
+    validated beyond what each group checks on construction (EnvParams and PPOHyperparams
+    do)."""
     paths = config_paths(config)
     by_parent: dict[str, dict[str, Any]] = {}
     for raw_name, value in overrides.items():
@@ -617,7 +622,7 @@ def apply_overrides(config: TrainConfig, overrides: Mapping[str, Any]) -> TrainC
     return config
 
 
-def _replace_at(config: TrainConfig, parent: str, fields: Mapping[str, Any]) -> TrainConfig:
+def _replace_at(config: _Config, parent: str, fields: Mapping[str, Any]) -> _Config:
     """``config`` with ``fields`` of the group at ``parent`` ('' for the top) replaced."""
     names = parent.split(".") if parent else []
 
@@ -628,7 +633,7 @@ def _replace_at(config: TrainConfig, parent: str, fields: Mapping[str, Any]) -> 
         child = rebuild(getattr(node, names[depth]), depth + 1)
         return dataclasses.replace(node, **{names[depth]: child})
 
-    return typing.cast(TrainConfig, rebuild(config, 0))
+    return typing.cast(_Config, rebuild(config, 0))
 
 
 def _replace_group(node: Any, fields: Mapping[str, Any], name: str) -> Any:
@@ -639,7 +644,8 @@ def _replace_group(node: Any, fields: Mapping[str, Any], name: str) -> Any:
     try:
         return dataclasses.replace(node, **fields)
     except ValueError as error:
-        raise ValueError(f"{name}: {error}" if name else str(error)) from None
+        named = not name or str(error).startswith(f"{name}.")  # it names its group already
+        raise ValueError(str(error) if named else f"{name}: {error}") from None
 
 
 # --------------------------------------------------------------------------------------------
@@ -671,13 +677,6 @@ def _int_at_least(path: str, value: object, minimum: int) -> None:
     _require(
         _is_int(value) and value >= minimum,  # type: ignore[operator]
         f"{path}={value!r} is invalid: it must be an integer >= {minimum}",
-    )
-
-
-def _positive(path: str, value: object) -> None:
-    _require(
-        _is_number(value) and math.isfinite(value) and value > 0,  # type: ignore[arg-type,operator]
-        f"{path}={value!r} is invalid: it must be a finite number > 0",
     )
 
 

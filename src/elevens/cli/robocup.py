@@ -132,6 +132,38 @@ class RoboCupMatchArgs:
 
 
 @dataclass(frozen=True)
+class RoboCupImitateArgs:
+    """Learn a team from other teams' game logs (behaviour cloning): the (.rcg, .rcl) pairs
+    that `elevens robocup match --log-dir` keeps. Writes a team folder that --team0 plays and
+    --run.init-from fine-tunes."""
+
+    logs: tuple[str, ...]
+    """Folders searched for .rcg/.rcl pairs."""
+    team_name: tuple[str, ...]
+    """The demonstrating team's name(s) in the logs, e.g. HELIOS_base."""
+    out: str
+    """The team folder to write."""
+    init_from: str = "elevens-11v11"
+    """The networks to start from (and whose shape the team gets)."""
+    players: int = 11
+    """Players per team in the logs."""
+    steps: int = 2000
+    """Gradient steps."""
+    batch_size: int = 32
+    """Sequences per step."""
+    sequence_length: int = 32
+    """Consecutive cycles per sequence (through the LSTM)."""
+    learning_rate: float = 1e-3
+    """Adam's step size."""
+    max_minutes: float | None = None
+    """Stop early after this many minutes."""
+    seed: int = 0
+    """Sampling seed."""
+    json: bool = False
+    """Print the result as one JSON object."""
+
+
+@dataclass(frozen=True)
 class RoboCupTeamArgs:
     """Join a running rcssserver as one team (a competition's server, or one that `elevens
     robocup match` started): connect the players, play until time over."""
@@ -287,6 +319,30 @@ def match(args: RoboCupMatchArgs) -> None:
         print(summary.line())
 
 
+def imitate(args: RoboCupImitateArgs) -> None:
+    from elevens.robocup.imitate import imitate_from_logs
+
+    try:
+        result = imitate_from_logs(
+            args.logs, args.team_name, args.out, init_from=args.init_from,
+            players_per_team=args.players, steps=args.steps, batch_size=args.batch_size,
+            sequence_length=args.sequence_length, learning_rate=args.learning_rate,
+            max_minutes=args.max_minutes, seed=args.seed,
+            print_fn=(lambda _: None) if args.json else print,
+        )
+    except ValueError as error:
+        exit_with_error("elevens robocup imitate: error", error, 2)
+    if args.json:
+        print(json_lib.dumps(asdict(result)))
+    else:
+        print(
+            f"wrote {args.out}: {result.steps} steps, loss "
+            f"{result.first_loss:.3f} -> {result.last_loss:.3f}, held-out mean squared error "
+            f"{result.held_out_loss:.3f} (mean |move error| {result.held_out_move_error:.3f}), "
+            f"{result.wall_s:.0f} s"
+        )
+
+
 def team(args: RoboCupTeamArgs) -> None:
     from elevens.robocup.server import ServerAddress
     from elevens.robocup.team import RoboCupTeam
@@ -324,6 +380,7 @@ COMMANDS: Commands = {
     "robocup-bench": (RoboCupBenchArgs, bench),
     "robocup-match": (RoboCupMatchArgs, match),
     "robocup-team": (RoboCupTeamArgs, team),
+    "robocup-imitate": (RoboCupImitateArgs, imitate),
 }
 """The RoboCup subcommands: name -> (args, command)."""
 

@@ -1,0 +1,570 @@
+"""Learn a team's play from its rcssserver game logs (behaviour cloning).
+
+A demonstrating team (helios-base, or any binary) plays matches with logging on
+(``elevens robocup match --log-dir``). Each match leaves a ``.rcg`` (every cycle's positions,
+velocities and bodies) and a ``.rcl`` (every command each player sent). From them:
+
+* **observations**: the simulator's observation of each demonstrating player, from the logged
+  state, as an elevens player would see it in a match (``elevens.env.observe.observe`` on the
+  server's field with the wide view's cone; the entities' last actions zeroed and the start
+  points set to the kick-off formation, as ``RoboCupTeam`` builds them);
+* **labels**: each player's body command in the "sim" action space (``robocup.env``):
+  ``(dash p d)`` -> move ``p / 100 * cos d``; ``(turn m)`` -> rot ``m / 180``; ``(kick p d)`` ->
+  move ``p / 100`` (the sim rule kicks when move > 0 with the ball kickable). Tackles, catches,
+  moves and every cycle that is not ``play_on`` are left out of the loss, as the set-piece and
+  goalie routines play them in a match.
+
+:func:`imitate` fits an elevens policy to these labels by maximum likelihood (its tanh-Gaussian,
+on sequences of consecutive cycles through the LSTM) and writes a team folder that ``elevens
+robocup match --team0 FOLDER`` plays, and that ``--run.init-from`` fine-tunes with PPO.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+import re
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+
+from elevens.env import observe as observe_lib
+from elevens.env.params import EnvParams
+from elevens.env.state import SELF_FEATURES, Observation, State
+from elevens.robocup.observe import PLAYER_DECAY
+from elevens.robocup.rules import kick_off_positions
+
+__all__ = [
+    "Demonstrations",
+    "GameLog",
+    "ImitationResult",
+    "demonstrations",
+    "imitate",
+    "label_of_command",
+    "read_game_log",
+]
+
+log = logging.getLogger(__name__)
+
+_SHOW = re.compile(r"^\(show (\d+) \(\(b\) (\S+) (\S+) (\S+) (\S+)\)")
+# ((l 3) type state x y vx vy body neck ...
+_PLAYER = re.compile(
+    r"\(\((l|r) (\d+)\) \d+ (0x[0-9a-f]+) (\S+) (\S+) (\S+) (\S+) (\S+) (\S+)"
+)
+_PLAYMODE = re.compile(r"^\(playmode (\d+) (\S+)\)")
+_TEAM = re.compile(r"^\(team \d+ (\S+) (\S+) \d+ \d+")
+_RECV = re.compile(r"^(\d+),(\d+)\tRecv (\S+)_(\d+): (.*)$")
+_COMMAND = re.compile(r"\((dash|turn|kick|tackle|catch|move)((?: [^()\s]+)*)\)")
+_TURN_SCALE = 180.0  # degrees at rot = 1: RoboCupTeam's default turn_scale
+_MAX_POWER = 100.0  # server::maxpower and max_dash_power
+_LABEL_LIMIT = 0.95  # keep targets off tanh's ends, where atanh diverges
+_KICK_OFF = "kick_off"
+_MIN_LOG_STD = math.log(0.1)  # the fitted policy keeps some spread for fine-tuning with PPO
+_SPREAD_WEIGHT = 0.1
+
+
+@dataclasses.dataclass(frozen=True)
+class GameLog:
+    """One match as the server logged it: ``T`` shows (one a cycle in synch play), the server's
+    frame (x to the right team's goal, y down)."""
+
+    team_names: tuple[str, str]
+    time: np.ndarray  # i32[T] the show's cycle
+    play_mode: list[str]  # [T]
+    positions: np.ndarray  # f32[T, 2, n, 2] (left, right), unum order; NaN when absent
+    velocities: np.ndarray  # f32[T, 2, n, 2] server m/cycle
+    body_deg: np.ndarray  # f32[T, 2, n]
+    ball: np.ndarray  # f32[T, 4] x, y, vx, vy
+    commands: dict[tuple[str, int, int], tuple[str, tuple[float, ...]]]
+    """(team name, unum, cycle) -> the body command of that cycle (name, arguments), from the
+    .rcl lines of play (stopped time 0)."""
+
+
+def _float(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):
+        raise ValueError(f"non-finite number {text!r}")
+    return value
+
+
+def read_game_log(rcg: str | Path, rcl: str | Path, players_per_team: int = 11) -> GameLog:
+    """Parse one match's ``.rcg`` (version 4-6 text) and ``.rcl``. A file that is not such a log
+    is a ``ValueError`` naming it and what was expected."""
+    rcg, rcl = Path(rcg), Path(rcl)
+    n = players_per_team
+    times: list[int] = []
+    modes: list[str] = []
+    rows: list[np.ndarray] = []
+    balls: list[tuple[float, ...]] = []
+    names: tuple[str, str] | None = None
+    mode = "before_kick_off"
+    with rcg.open(encoding="utf-8", errors="replace") as lines:
+        header = lines.readline()
+        if not header.startswith("ULG"):
+            raise ValueError(
+                f"{rcg} is not a text game log: it starts {header[:20]!r}, expected 'ULG4'-'ULG6'"
+            )
+        for number, line in enumerate(lines, start=2):
+            if line.startswith("(playmode "):
+                found = _PLAYMODE.match(line)
+                if found:
+                    mode = found.group(2)
+                continue
+            if line.startswith("(team "):
+                found = _TEAM.match(line)
+                if found:
+                    names = (found.group(1), found.group(2))
+                continue
+            if not line.startswith("(show "):
+                continue
+            show = _SHOW.match(line)
+            if show is None:
+                raise ValueError(f"{rcg}:{number}: a show line without the ball: {line[:80]!r}")
+            row = np.full((2, n, 5), np.nan, np.float32)
+            try:
+                ball = tuple(_float(show.group(i)) for i in range(2, 6))
+                for player in _PLAYER.finditer(line):
+                    side, unum = int(player.group(1) == "r"), int(player.group(2))
+                    if 1 <= unum <= n and int(player.group(3), 16) != 0:
+                        x, y, vx, vy, body = (_float(player.group(i)) for i in range(4, 9))
+                        row[side, unum - 1] = (x, y, vx, vy, body)
+            except ValueError as error:
+                raise ValueError(f"{rcg}:{number}: {error}") from None
+            times.append(int(show.group(1)))
+            modes.append(mode)
+            rows.append(row)
+            balls.append(ball)
+    if names is None or not times:
+        raise ValueError(f"{rcg} has no (team ...) or (show ...) lines: not a game log")
+    states = np.stack(rows)
+    return GameLog(
+        team_names=names,
+        time=np.asarray(times, np.int32),
+        play_mode=modes,
+        positions=states[..., 0:2],
+        velocities=states[..., 2:4],
+        body_deg=states[..., 4],
+        ball=np.asarray(balls, np.float32),
+        commands=_read_commands(rcl, names),
+    )
+
+
+def _read_commands(
+    rcl: Path, names: tuple[str, str]
+) -> dict[tuple[str, int, int], tuple[str, tuple[float, ...]]]:
+    commands: dict[tuple[str, int, int], tuple[str, tuple[float, ...]]] = {}
+    with rcl.open(encoding="utf-8", errors="replace") as lines:
+        for line in lines:
+            found = _RECV.match(line)
+            if found is None or found.group(2) != "0" or found.group(3) not in names:
+                continue
+            body = _COMMAND.search(found.group(5))
+            if body is None:
+                continue
+            try:
+                arguments = tuple(float(a) for a in body.group(2).split())
+            except ValueError:
+                continue  # (move) / (catch) with a malformed argument: not a label anyway
+            key = (found.group(3), int(found.group(4)), int(found.group(1)))
+            commands[key] = (body.group(1), arguments)
+    return commands
+
+
+def label_of_command(name: str, arguments: Sequence[float]) -> tuple[float, float] | None:
+    """A body command -> its (move, rot) in the "sim" action space, or None where that space
+    has no such command (tackle, catch, move). See the module docstring."""
+    if name == "dash":
+        power = arguments[0] if arguments else 0.0
+        direction = math.radians(arguments[1]) if len(arguments) > 1 else 0.0
+        move = power / _MAX_POWER * math.cos(direction)
+        return _limit(move), 0.0
+    if name == "turn":
+        return 0.0, _limit((arguments[0] if arguments else 0.0) / _TURN_SCALE)
+    if name == "kick":
+        return _limit(max(arguments[0] if arguments else 0.0, 1.0) / _MAX_POWER), 0.0
+    return None
+
+
+def _limit(value: float) -> float:
+    return float(min(max(value, -_LABEL_LIMIT), _LABEL_LIMIT))
+
+
+@dataclasses.dataclass(frozen=True)
+class Demonstrations:
+    """One team's play in one match, per player: observations and labels, ``T`` cycles."""
+
+    observations: Observation  # leading axes [n, T]
+    actions: np.ndarray  # f32[n, T, 2]
+    valid: np.ndarray  # bool[n, T]: a labelled play_on cycle (in the loss)
+    reset: np.ndarray  # bool[T]: a jump in the log (restart the memory)
+
+    @property
+    def labelled(self) -> int:
+        return int(self.valid.sum())
+
+
+def demonstrations(
+    game: GameLog,
+    team_name: str,
+    params: EnvParams,
+    *,
+    episode_length: int = 400,
+) -> Demonstrations:
+    """The observations and labels of ``team_name``'s players in ``game`` (see the module
+    docstring). ``params``: the server field's EnvParams (``robocup_env_params``);
+    ``episode_length``: the period of the time feature, as ``RoboCupTeam`` restarts it."""
+    if team_name not in game.team_names:
+        raise ValueError(
+            f"team {team_name!r} did not play in this match: the teams were "
+            f"{game.team_names[0]!r} and {game.team_names[1]!r}"
+        )
+    side = game.team_names.index(team_name)
+    n = params.players_per_team
+    steps = len(game.time)
+    actions = np.zeros((n, steps, 2), np.float32)
+    valid = np.zeros((n, steps), bool)
+    for i in range(n):
+        for t, (cycle, mode) in enumerate(zip(game.time.tolist(), game.play_mode, strict=True)):
+            command = game.commands.get((team_name, i + 1, cycle))
+            label = label_of_command(*command) if command is not None else None
+            if label is not None:
+                actions[i, t] = label
+                valid[i, t] = mode == "play_on"
+    present = np.isfinite(game.positions[:, side, :, 0]).T  # [n, T]
+    valid &= present
+    # Own previous action in the self features, as RoboCupTeam feeds its last output back.
+    previous = np.concatenate([np.zeros((n, 1, 2), np.float32), actions[:, :-1]], axis=1)
+    steps_since = _steps_since_kick_off(game) % episode_length
+    obs = _observations(game, side, params, steps_since, previous)
+    reset = np.ones(steps, bool)
+    reset[1:] = np.diff(game.time) != 1
+    reset[1:] &= np.diff(game.time) != 0  # stopped time repeats a cycle: still continuous
+    return Demonstrations(observations=obs, actions=actions, valid=valid, reset=reset)
+
+
+def _steps_since_kick_off(game: GameLog) -> np.ndarray:
+    steps = np.zeros(len(game.time), np.int64)
+    count = 0
+    for t, mode in enumerate(game.play_mode):
+        count = 0 if mode.startswith(_KICK_OFF) else count + 1
+        steps[t] = count
+    return steps
+
+
+def _world_states(game: GameLog, side: int, params: EnvParams, previous: np.ndarray) -> State:
+    """[T]-batched simulator States (world frame: the left team attacks +x, y up)."""
+    n = params.players_per_team
+    steps = len(game.time)
+    positions = np.nan_to_num(game.positions).reshape(steps, 2 * n, 2) * np.array([1.0, -1.0])
+    velocities = (
+        np.nan_to_num(game.velocities).reshape(steps, 2 * n, 2)
+        * np.array([1.0, -1.0])
+        / PLAYER_DECAY
+    )
+    headings = -np.radians(np.nan_to_num(game.body_deg).reshape(steps, 2 * n))
+    last_actions = np.zeros((steps, 2, n, 2), np.float32)
+    last_actions[:, side] = previous.transpose(1, 0, 2)
+    formation = kick_off_positions(n, taker=False)
+    start = np.concatenate([formation, -formation])  # team 1's own frame is mirrored
+    leaves: dict[str, Any] = dict(  # numpy leaves, [T]-batched
+        positions=positions.astype(np.float32),
+        headings=headings.astype(np.float32),
+        velocities=velocities.astype(np.float32),
+        last_actions=last_actions.reshape(steps, 2 * n, 2),
+        start_positions=np.broadcast_to(start, (steps, 2 * n, 2)).astype(np.float32),
+        ball_position=(game.ball[:, :2] * np.array([1.0, -1.0])).astype(np.float32),
+        ball_velocity=(game.ball[:, 2:] * np.array([1.0, -1.0])).astype(np.float32),
+        score=np.zeros((steps, 2), np.int32),
+        step=np.zeros(steps, np.int32),
+    )
+    return State(**leaves)
+
+
+def _observations(
+    game: GameLog, side: int, params: EnvParams, steps_since: np.ndarray, previous: np.ndarray
+) -> Observation:
+    """Observations [n, T] of ``side``'s players (see the module docstring)."""
+    states = _world_states(game, side, params, previous)
+    observe = jax.jit(jax.vmap(lambda state: observe_lib.observe(state, params)))
+    chunks = []
+    for start in range(0, len(game.time), 1024):
+        part = jax.tree.map(lambda leaf, s=start: leaf[s : s + 1024], states)
+        chunks.append(jax.device_get(observe(part)))
+    obs = jax.tree.map(lambda *leaves: np.concatenate(leaves), *chunks)
+    obs = jax.tree.map(lambda leaf: np.swapaxes(leaf[:, side], 0, 1), obs)  # [n, T, ...]
+    entities = obs.entities.copy()
+    entities[..., ENTITY_LAST_ACTIONS] = 0.0  # a see message shows no one's last action
+    features = obs.self_features.copy()
+    time_index = SELF_FEATURES.index("time_left")
+    features[..., time_index] = np.clip(1.0 - steps_since / params.episode_length, 0.0, 1.0)
+    return Observation(self_features=features, entities=entities, entity_mask=obs.entity_mask)
+
+
+ENTITY_LAST_ACTIONS = slice(7, 9)  # last_move, last_rot in ENTITY_FEATURES
+
+
+@dataclasses.dataclass(frozen=True)
+class ImitationResult:
+    """What :func:`imitate` did."""
+
+    steps: int
+    samples: int  # labelled player-cycles in the data
+    first_loss: float  # mean training loss over the first 5% of steps
+    last_loss: float  # ... and the last 5%
+    held_out_loss: float  # mean squared error of the deterministic action, held out (nan
+    # without any held-out sequence)
+    held_out_move_error: float  # mean |move - label| of the deterministic action, held out
+    wall_s: float
+
+
+def _sequences(
+    demos: Sequence[Demonstrations], length: int
+) -> tuple[Observation, np.ndarray, np.ndarray, np.ndarray]:
+    """Cut every player's trajectory into sequences of ``length`` cycles with at least one
+    labelled cycle: (obs [S, L], actions [S, L, 2], valid [S, L], reset [S, L])."""
+    obs_parts, action_parts, valid_parts, reset_parts = [], [], [], []
+    for demo in demos:
+        steps = demo.actions.shape[1] // length * length
+        if steps == 0:
+            continue
+
+        def cut(leaf: np.ndarray, steps: int = steps) -> np.ndarray:
+            return leaf[:, :steps].reshape(-1, length, *leaf.shape[2:])
+
+        n = demo.actions.shape[0]
+        valid = cut(demo.valid)
+        keep = valid.any(axis=1)
+        reset = np.broadcast_to(demo.reset[None, :steps], (n, steps)).reshape(-1, length).copy()
+        reset[:, 0] = True
+        obs_parts.append(
+            jax.tree.map(lambda leaf, keep=keep: cut(leaf)[keep], demo.observations)
+        )
+        action_parts.append(cut(demo.actions)[keep])
+        valid_parts.append(valid[keep])
+        reset_parts.append(reset[keep])
+    if not action_parts:
+        raise ValueError(f"no demonstrations of at least {length} cycles")
+    obs = jax.tree.map(lambda *leaves: np.concatenate(leaves), *obs_parts)
+    return (
+        obs,
+        np.concatenate(action_parts),
+        np.concatenate(valid_parts),
+        np.concatenate(reset_parts),
+    )
+
+
+def imitate(
+    policy: Any,
+    params: Any,
+    demos: Sequence[Demonstrations],
+    *,
+    steps: int = 2000,
+    batch_size: int = 32,
+    sequence_length: int = 32,
+    learning_rate: float = 1e-3,
+    held_out: float = 0.1,
+    seed: int = 0,
+    max_minutes: float | None = None,
+    progress: Callable[[int, float], None] | None = None,
+) -> tuple[Any, ImitationResult]:
+    """Fit ``policy`` (an AttentionPolicy) from ``params`` to the demonstrations; returns the new
+    params and an :class:`ImitationResult`. ``held_out``: the share of sequences kept out of
+    training to measure the fit; ``max_minutes`` stops early."""
+    if steps < 1 or batch_size < 1 or sequence_length < 1:
+        raise ValueError(
+            f"steps={steps}, batch_size={batch_size}, sequence_length={sequence_length}: "
+            "each must be >= 1"
+        )
+    if not 0.0 <= held_out < 1.0:
+        raise ValueError(f"held_out={held_out!r} is invalid: it must be in [0, 1)")
+    began = time.perf_counter()
+    obs, actions, valid, reset = _sequences(demos, sequence_length)
+    rng = np.random.default_rng(seed)
+    order = rng.permutation(len(actions))
+    test_count = int(len(order) * held_out)
+    test, train = order[:test_count], order[test_count:]
+    if len(train) == 0:
+        raise ValueError("no training sequences left after holding some out")
+    optimizer = optax.chain(optax.clip_by_global_norm(1.0), optax.adam(learning_rate))
+    opt_state = optimizer.init(params)
+
+    def losses(p: Any, o: Observation, a: jax.Array, v: jax.Array, r: jax.Array) -> Any:
+        carry = policy.initial_carry(a.shape[:1])
+        _, output = policy.apply(p, carry, o, r, 1, method=policy.unroll)
+        distribution = output.distribution()
+        weight = v.astype(jnp.float32)
+        count = jnp.maximum(weight.sum(), 1.0)
+        squared = jnp.sum((distribution.mode() - a) ** 2, axis=-1)
+        # The spread is fitted around the (fixed) fitted mean, and kept from collapsing: a
+        # near-constant label (a zero turn) would otherwise shrink it to the clamp, where its
+        # huge gradients would drown the mean's.
+        spread = dataclasses.replace(
+            distribution,
+            mean=jax.lax.stop_gradient(distribution.mean),
+            log_std=jnp.maximum(distribution.log_std, _MIN_LOG_STD),
+        )
+        nll = -spread.log_prob_of_action(a)
+        total = ((squared + _SPREAD_WEIGHT * nll) * weight).sum() / count
+        move_error = jnp.abs(distribution.mode()[..., 0] - a[..., 0])
+        return total, ((squared * weight).sum() / count, (move_error * weight).sum() / count)
+
+    @jax.jit
+    def update(p: Any, state: Any, o: Observation, a: Any, v: Any, r: Any) -> Any:
+        (loss, _), grads = jax.value_and_grad(losses, has_aux=True)(p, o, a, v, r)
+        changes, state = optimizer.update(grads, state, p)
+        return optax.apply_updates(p, changes), state, loss
+
+    evaluate = jax.jit(losses)
+
+    def batch(rows: np.ndarray) -> tuple[Any, ...]:
+        return (
+            jax.tree.map(lambda leaf: jnp.asarray(leaf[rows]), obs),
+            jnp.asarray(actions[rows]),
+            jnp.asarray(valid[rows]),
+            jnp.asarray(reset[rows]),
+        )
+
+    history = []
+    done = 0
+    for step in range(steps):
+        rows = train[rng.integers(0, len(train), batch_size)]
+        params, opt_state, loss = update(params, opt_state, *batch(rows))
+        history.append(float(loss))
+        done = step + 1
+        if progress is not None:
+            progress(done, history[-1])
+        if max_minutes is not None and time.perf_counter() - began > 60.0 * max_minutes:
+            break
+    held_loss, held_error = math.nan, math.nan
+    if len(test):
+        totals = np.zeros(2)
+        parts = np.array_split(test, max(1, len(test) // 256))
+        for part in parts:
+            totals += np.asarray(evaluate(params, *batch(part))[1], np.float64) * len(part)
+        held_loss, held_error = (totals / len(test)).tolist()
+    window = max(1, done // 20)
+    result = ImitationResult(
+        steps=done,
+        samples=int(valid.sum()),
+        first_loss=float(np.mean(history[:window])),
+        last_loss=float(np.mean(history[-window:])),
+        held_out_loss=held_loss,
+        held_out_move_error=held_error,
+        wall_s=time.perf_counter() - began,
+    )
+    return params, result
+
+
+def log_pairs(directory: str | Path) -> list[tuple[Path, Path]]:
+    """Every (.rcg, .rcl) pair under ``directory`` (``elevens robocup match --log-dir`` writes
+    one folder per match); an empty list when there is none."""
+    pairs = []
+    for rcg in sorted(Path(directory).rglob("*.rcg")):
+        rcl = rcg.with_suffix(".rcl")
+        if rcl.is_file():
+            pairs.append((rcg, rcl))
+    return pairs
+
+
+def imitate_from_logs(
+    log_dirs: Sequence[str | Path],
+    team_names: Sequence[str],
+    out: str | Path,
+    *,
+    init_from: str = "elevens-11v11",
+    players_per_team: int = 11,
+    steps: int = 2000,
+    batch_size: int = 32,
+    sequence_length: int = 32,
+    learning_rate: float = 1e-3,
+    max_minutes: float | None = None,
+    seed: int = 0,
+    print_fn: Callable[[str], None] = print,
+) -> ImitationResult:
+    """Read every match under ``log_dirs``, fit the networks of ``init_from`` (a shipped team,
+    exported folder or checkpoint) to the play of the teams named ``team_names`` in them, and
+    write the result as a team folder ``out`` (networks.npz, config.json, MODEL_CARD.md) on the
+    server's field. Raises ``ValueError`` naming what is missing when no log holds such a team."""
+    from elevens.robocup.env import RoboCupConfig, robocup_env_params
+    from elevens.runs.teams import load_learner_params
+    from elevens.teams.trained import save_networks
+    from elevens.train.config import apply_overrides
+
+    pairs = [pair for directory in log_dirs for pair in log_pairs(directory)]
+    if not pairs:
+        raise ValueError(
+            f"no .rcg/.rcl pair under {', '.join(map(str, log_dirs))}: write them with "
+            "`elevens robocup match --log-dir DIR`"
+        )
+    config, learner_params = load_learner_params(init_from)
+    env_params = robocup_env_params(RoboCupConfig(players_per_team=players_per_team))
+    demos: list[Demonstrations] = []
+    seen_names: set[str] = set()
+    for rcg, rcl in pairs:
+        game = read_game_log(rcg, rcl, players_per_team)
+        seen_names.update(game.team_names)
+        for name in team_names:
+            if name in game.team_names:
+                demos.append(demonstrations(game, name, env_params))
+        print_fn(f"read {rcg.name}: {', '.join(game.team_names)}")
+    if not demos:
+        raise ValueError(
+            f"none of the teams {', '.join(map(repr, team_names))} played in the logs; "
+            f"the logs' teams: {', '.join(sorted(seen_names))}"
+        )
+    policy = config.learner.network.policy()
+
+    def progress(step: int, loss: float) -> None:
+        if step % 100 == 0:
+            print_fn(f"step {step}: loss {loss:.3f}")
+
+    policy_params, result = imitate(
+        policy, learner_params.policy, demos, steps=steps, batch_size=batch_size,
+        sequence_length=sequence_length, learning_rate=learning_rate, seed=seed,
+        max_minutes=max_minutes, progress=progress,
+    )
+    overrides: dict[str, Any] = {
+        "env.field_length": float(env_params.field_length),
+        "env.field_width": float(env_params.field_width),
+        "env.goal_width": float(env_params.goal_width),
+    }
+    if players_per_team != config.learner.players_per_team:
+        # A valid config for the new team size: one minibatch of whole games.
+        overrides["env.players_per_team"] = players_per_team
+        overrides["ppo.minibatch_size"] = players_per_team * config.learner.games_per_iteration
+    saved = apply_overrides(config, overrides).validate()
+    card = _model_card(init_from, team_names, pairs, result)
+    networks = {"policy": jax.device_get(policy_params), "critic": learner_params.critic}
+    save_networks(out, networks, saved.to_dict(), card)
+    return result
+
+
+def _model_card(
+    init_from: str,
+    team_names: Sequence[str],
+    pairs: Sequence[tuple[Path, Path]],
+    result: ImitationResult,
+) -> str:
+    lines = [
+        "# A team learned from game logs (behaviour cloning)",
+        "",
+        f"- Demonstrators: {', '.join(team_names)}, in {len(pairs)} logged matches.",
+        f"- Started from: {init_from}.",
+        f"- {result.steps} steps on {result.samples} labelled player-cycles in "
+        f"{result.wall_s / 60:.1f} min.",
+        f"- Training loss: {result.first_loss:.3f} (first 5% of steps) -> "
+        f"{result.last_loss:.3f} (last 5%); held-out mean squared error "
+        f"{result.held_out_loss:.3f}.",
+        f"- Held-out mean |move - label| of the deterministic action: "
+        f"{result.held_out_move_error:.3f}.",
+        "- Made by `elevens robocup imitate` (elevens.robocup.imitate).",
+        "",
+    ]
+    return "\n".join(lines)

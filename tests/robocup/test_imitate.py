@@ -1,0 +1,216 @@
+"""Behaviour cloning from game logs (elevens.robocup.imitate).
+
+``logs/helios_excerpt.*`` are cycles 20-60 of a real helios-base against helios-base match
+(rcssserver 19, `elevens robocup match --log-dir`): kick-off, then play_on from cycle 24.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from elevens.cli.app import main
+from elevens.env import observe as observe_lib
+from elevens.env.state import SELF_FEATURES, Observation
+from elevens.nets.policy import AttentionPolicy
+from elevens.robocup.env import RoboCupConfig, robocup_env_params
+from elevens.robocup.imitate import (
+    Demonstrations,
+    demonstrations,
+    imitate,
+    imitate_from_logs,
+    label_of_command,
+    read_game_log,
+)
+from elevens.robocup.play import load_robocup_team
+
+LOGS = Path(__file__).parent / "logs"
+RCG, RCL = LOGS / "helios_excerpt.rcg", LOGS / "helios_excerpt.rcl"
+PARAMS = robocup_env_params(RoboCupConfig(players_per_team=11))
+
+
+@pytest.mark.parametrize(
+    ("command", "label"),
+    [
+        (("dash", (100.0, 0.0)), (0.95, 0.0)),  # full power is kept off tanh's end
+        (("dash", (50.0,)), (0.5, 0.0)),
+        (("dash", (60.0, 180.0)), (-0.6, 0.0)),  # a backward dash moves backwards
+        (("dash", (80.0, 90.0)), (0.0, 0.0)),  # sideways: no forward part
+        (("turn", (90.0,)), (0.0, 0.5)),
+        (("turn", (-36.0,)), (0.0, -0.2)),
+        (("kick", (80.0, 30.0)), (0.8, 0.0)),  # the sim rule kicks when move > 0
+        (("tackle", (50.0,)), None),
+        (("catch", (10.0,)), None),
+        (("move", (-10.0, 0.0)), None),
+    ],
+)
+def test_commands_become_sim_actions(command, label):
+    found = label_of_command(*command)
+    if label is None:
+        assert found is None
+    else:
+        np.testing.assert_allclose(found, label, atol=1e-9)
+
+
+def test_a_real_log_is_read():
+    game = read_game_log(RCG, RCL)
+    assert game.team_names == ("HELIOS_a", "HELIOS_b")
+    assert game.time[0] == 20 and game.time[-1] == 60
+    assert game.play_mode[0] == "kick_off_l" and game.play_mode[-1] == "play_on"
+    assert game.play_mode[list(game.time).index(24)] == "play_on"
+    assert np.isfinite(game.positions).all()  # all 22 players on the field
+    # The goalies stand in front of their own goals.
+    assert game.positions[0, 0, 0, 0] < -40 and game.positions[0, 1, 0, 0] > 40
+    # A body command from nearly every player every cycle (a few cycles have only a turn_neck).
+    assert 0.95 * 2 * 11 * 41 <= len(game.commands) <= 2 * 11 * 41
+    assert game.commands[("HELIOS_b", 9, 20)] == ("dash", (60.961,))
+
+
+def test_a_file_that_is_not_a_game_log_is_refused(tmp_path):
+    text = tmp_path / "x.rcg"
+    text.write_text("hello\n")
+    with pytest.raises(ValueError, match=r"x\.rcg is not a text game log.*ULG"):
+        read_game_log(text, RCL)
+    broken = tmp_path / "broken.rcg"
+    lines = RCG.read_text().splitlines()
+    show = next(i for i, line in enumerate(lines) if line.startswith("(show "))
+    lines[show] = lines[show].replace("((l 2) 10 0x1 ", "((l 2) 10 0x1 nan ", 1)
+    broken.write_text("\n".join(lines) + "\n")
+    with pytest.raises(ValueError, match=r"broken\.rcg:\d+: non-finite number 'nan'"):
+        read_game_log(broken, RCL)
+
+
+def test_demonstrations_match_the_simulator_observation_and_label_play_on_only():
+    game = read_game_log(RCG, RCL)
+    demo = demonstrations(game, "HELIOS_b", PARAMS)
+    steps = len(game.time)
+    assert demo.actions.shape == (11, steps, 2)
+    assert demo.observations.entities.shape == (11, steps, 22, 11)
+    play_on = np.array([mode == "play_on" for mode in game.play_mode])
+    has_body_command = np.array(
+        [[("HELIOS_b", unum, t) in game.commands for t in game.time] for unum in range(1, 12)]
+    )
+    np.testing.assert_array_equal(demo.valid, has_body_command & play_on)
+    t = list(game.time).index(30)
+    # The right team sees itself attacking +x: its own x is the server's x mirrored.
+    x_index = SELF_FEATURES.index("x")
+    np.testing.assert_allclose(
+        demo.observations.self_features[:, t, x_index],
+        -game.positions[t, 1, :, 0] / PARAMS.half_length,
+        rtol=1e-5,
+    )
+    # The labels are the logged commands.
+    for unum in (2, 9):
+        command = game.commands[("HELIOS_b", unum, 30)]
+        np.testing.assert_allclose(demo.actions[unum - 1, t], label_of_command(*command))
+        # ... and each player's previous label is its last action in the self features.
+        before = label_of_command(*game.commands[("HELIOS_b", unum, 29)])
+        last = SELF_FEATURES.index("last_move")
+        np.testing.assert_allclose(
+            demo.observations.self_features[unum - 1, t, last : last + 2], before, atol=1e-6
+        )
+    # The entity features are the simulator's (field of view included), without last actions.
+    ball_distance = demo.observations.self_features[:, t, SELF_FEATURES.index("ball_distance")]
+    ball = game.ball[t, :2]
+    expected = np.hypot(*(game.positions[t, 1] - ball).T) / PARAMS.field_length
+    seen = demo.observations.self_features[:, t, SELF_FEATURES.index("ball_visible")] > 0
+    np.testing.assert_allclose(ball_distance[seen], expected[seen], rtol=1e-4)
+    assert not demo.observations.entities[..., 7:9].any()
+    assert not seen.all()  # some players have their backs to the ball
+
+
+def test_a_team_that_did_not_play_is_named():
+    game = read_game_log(RCG, RCL)
+    with pytest.raises(ValueError, match="'CYRUS' did not play.*'HELIOS_a' and 'HELIOS_b'"):
+        demonstrations(game, "CYRUS", PARAMS)
+
+
+def _synthetic(key: int, steps: int = 64, n: int = 3) -> Demonstrations:
+    """Players that dash forward when the ball is to their left and back when to their right."""
+    params = robocup_env_params(RoboCupConfig(players_per_team=n))
+    rng = np.random.default_rng(key)
+    obs_list = []
+    for _ in range(steps):
+        state = observe_lib_state(rng, n)
+        obs_list.append(jax.tree.map(np.asarray, observe_lib.observe(state, params)))
+    obs = jax.tree.map(lambda *leaves: np.stack(leaves, axis=2)[0], *obs_list)  # [n, T]
+    sin_bearing = obs.self_features[..., SELF_FEATURES.index("ball_sin_bearing")]
+    move = np.where(sin_bearing > 0, 0.8, -0.8).astype(np.float32)
+    actions = np.stack([move, np.zeros_like(move)], axis=-1)
+    valid = obs.self_features[..., SELF_FEATURES.index("ball_visible")] > 0
+    return Demonstrations(
+        observations=Observation(
+            self_features=obs.self_features, entities=obs.entities, entity_mask=obs.entity_mask
+        ),
+        actions=actions, valid=valid, reset=np.zeros(steps, bool),
+    )
+
+
+def observe_lib_state(rng: np.random.Generator, n: int):
+    from elevens.env.state import State
+
+    return State(
+        positions=jnp.asarray(rng.uniform(-30, 30, (2 * n, 2)), jnp.float32),
+        headings=jnp.asarray(rng.uniform(-math.pi, math.pi, 2 * n), jnp.float32),
+        velocities=jnp.zeros((2 * n, 2)),
+        last_actions=jnp.zeros((2 * n, 2)),
+        start_positions=jnp.zeros((2 * n, 2)),
+        ball_position=jnp.asarray(rng.uniform(-30, 30, 2), jnp.float32),
+        ball_velocity=jnp.zeros(2),
+        score=jnp.zeros(2, jnp.int32),
+        step=jnp.zeros((), jnp.int32),
+    )
+
+
+def test_imitation_learns_a_rule_it_is_shown():
+    demos = [_synthetic(k) for k in range(4)]
+    policy = AttentionPolicy(features=32, lstm_features=16)
+    obs0 = jax.tree.map(lambda leaf: jnp.asarray(leaf[:, 0]), demos[0].observations)
+    params = policy.init(jax.random.key(0), policy.initial_carry((3,)), obs0, jnp.ones(3, bool))
+    fitted, result = imitate(
+        policy, params, demos, steps=300, batch_size=8, sequence_length=8, learning_rate=3e-3,
+        held_out=0.25,
+    )
+    assert result.steps == 300 and result.samples == sum(d.labelled for d in demos)
+    assert result.last_loss < result.first_loss - 1.0
+    # Held-out sequences: the deterministic move has the label's sign and is close to it.
+    assert result.held_out_move_error < 0.35
+    untrained = imitate(policy, params, demos, steps=1, learning_rate=1e-9, held_out=0.25)[1]
+    assert result.held_out_move_error < 0.5 * untrained.held_out_move_error
+
+
+def test_a_learned_team_is_written_and_plays(tmp_path):
+    out = tmp_path / "team"
+    result = imitate_from_logs(
+        [LOGS], ["HELIOS_a"], out, init_from="elevens-2v2", steps=3, batch_size=2,
+        sequence_length=8, print_fn=lambda _: None,
+    )
+    assert result.steps == 3 and result.samples > 0
+    assert (out / "networks.npz").is_file() and "HELIOS_a" in (out / "MODEL_CARD.md").read_text()
+    team = load_robocup_team(str(out), "sim")
+    from elevens.runs.teams import load_team
+
+    assert load_team(str(out)).field == (105.0, 68.0, 14.02)  # the server's field
+    obs = jax.tree.map(
+        lambda leaf: jnp.asarray(leaf[:, 0]),
+        demonstrations(read_game_log(RCG, RCL), "HELIOS_a", PARAMS).observations,
+    )
+    _, actions = team.act(team.init_carry(11), obs, jax.random.key(0))
+    assert np.asarray(actions).shape == (11, 2) and np.isfinite(np.asarray(actions)).all()
+
+
+def test_the_command_names_a_missing_team_and_missing_logs(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exited:
+        main(["robocup", "imitate", "--logs", str(LOGS), "--team-name", "CYRUS",
+              "--out", str(tmp_path / "t"), "--steps", "1"])
+    assert exited.value.code == 2
+    assert "'CYRUS'" in capsys.readouterr().err and not (tmp_path / "t").exists()
+    with pytest.raises(SystemExit):
+        main(["robocup", "imitate", "--logs", str(tmp_path), "--team-name", "X",
+              "--out", str(tmp_path / "t")])
+    assert "no .rcg/.rcl pair" in capsys.readouterr().err

@@ -10,7 +10,7 @@ import json as json_lib
 import sys
 import time
 from dataclasses import asdict, dataclass, replace
-from typing import Annotated
+from typing import Annotated, Literal
 
 import tyro
 
@@ -155,6 +155,14 @@ class RoboCupImitateArgs:
     """Consecutive cycles per sequence (through the LSTM)."""
     learning_rate: float = 1e-3
     """Adam's step size."""
+    labels: Literal["commands", "intent"] = "commands"
+    """commands: each cycle's label is the command sent; intent: the command that heads for
+    where the player will be --lookahead cycles on (kicks stay as sent)."""
+    lookahead: int = 10
+    """Cycles ahead for --labels intent."""
+    see_period: int = 3
+    """Cycles between two see messages of an elevens player in a match (3: wide view, synch
+    mode); its view is held in between."""
     max_minutes: float | None = None
     """Stop early after this many minutes."""
     seed: int = 0
@@ -327,6 +335,7 @@ def imitate(args: RoboCupImitateArgs) -> None:
             args.logs, args.team_name, args.out, init_from=args.init_from,
             players_per_team=args.players, steps=args.steps, batch_size=args.batch_size,
             sequence_length=args.sequence_length, learning_rate=args.learning_rate,
+            see_period=args.see_period, labels=args.labels, lookahead=args.lookahead,
             max_minutes=args.max_minutes, seed=args.seed,
             print_fn=(lambda _: None) if args.json else print,
         )
@@ -337,8 +346,9 @@ def imitate(args: RoboCupImitateArgs) -> None:
     else:
         print(
             f"wrote {args.out}: {result.steps} steps, loss "
-            f"{result.first_loss:.3f} -> {result.last_loss:.3f}, held-out mean squared error "
-            f"{result.held_out_loss:.3f} (mean |move error| {result.held_out_move_error:.3f}), "
+            f"{result.first_loss:.3f} -> {result.last_loss:.3f}; held out: the demonstrator's "
+            f"command in {result.held_out_agreement:.1%} of cycles (mean |move error| "
+            f"{result.held_out_move_error:.3f}), "
             f"{result.wall_s:.0f} s"
         )
 

@@ -14,9 +14,12 @@ velocities and bodies) and a ``.rcl`` (every command each player sent). From the
   moves and every cycle that is not ``play_on`` are left out of the loss, as the set-piece and
   goalie routines play them in a match.
 
-:func:`imitate` fits an elevens policy to these labels by maximum likelihood (its tanh-Gaussian,
-on sequences of consecutive cycles through the LSTM) and writes a team folder that ``elevens
-robocup match --team0 FOLDER`` plays, and that ``--run.init-from`` fine-tunes with PPO.
+:func:`imitate` fits an elevens policy's deterministic action (``tanh`` of its Gaussian's
+mean) to these labels with :func:`command_loss`, on sequences of consecutive cycles through the
+LSTM, and writes a team folder that ``elevens robocup match --team0 FOLDER`` plays, and that
+``--run.init-from`` fine-tunes with PPO. The spread of the Gaussian is not fitted (it is what the
+starting networks give). Between two see messages a player's view is held, as in a match
+(``see_period``).
 """
 
 from __future__ import annotations
@@ -66,8 +69,6 @@ _TURN_SCALE = 180.0  # degrees at rot = 1: RoboCupTeam's default turn_scale
 _MAX_POWER = 100.0  # server::maxpower and max_dash_power
 _LABEL_LIMIT = 0.95  # keep targets off tanh's ends, where atanh diverges
 _KICK_OFF = "kick_off"
-_MIN_LOG_STD = math.log(0.1)  # the fitted policy keeps some spread for fine-tuning with PPO
-_SPREAD_WEIGHT = 0.1
 
 
 @dataclasses.dataclass(frozen=True)
@@ -216,10 +217,26 @@ def demonstrations(
     params: EnvParams,
     *,
     episode_length: int = 400,
+    see_period: int = 3,
+    labels: str = "commands",
+    lookahead: int = 10,
 ) -> Demonstrations:
     """The observations and labels of ``team_name``'s players in ``game`` (see the module
     docstring). ``params``: the server field's EnvParams (``robocup_env_params``);
-    ``episode_length``: the period of the time feature, as ``RoboCupTeam`` restarts it."""
+    ``episode_length``: the period of the time feature, as ``RoboCupTeam`` restarts it;
+    ``see_period``: cycles between two see messages (3 for the wide view in synch mode). As in
+    ``PerceptMemory``, a player's view of the field (its pose, the ball, the others) is that of
+    its latest see, while its last action and the time are fresh every cycle.
+
+    ``labels``: "commands" labels each cycle with the command sent (the module docstring);
+    "intent" with the command that takes the player where it will be ``lookahead`` cycles on
+    (:func:`intent_labels`)."""
+    if labels not in LABELS:
+        raise ValueError(f"labels={labels!r} is invalid: it must be one of {', '.join(LABELS)}")
+    if lookahead < 1:
+        raise ValueError(f"lookahead={lookahead!r} is invalid: it must be >= 1")
+    if see_period < 1:
+        raise ValueError(f"see_period={see_period!r} is invalid: it must be >= 1")
     if team_name not in game.team_names:
         raise ValueError(
             f"team {team_name!r} did not play in this match: the teams were "
@@ -239,14 +256,58 @@ def demonstrations(
                 valid[i, t] = mode == "play_on"
     present = np.isfinite(game.positions[:, side, :, 0]).T  # [n, T]
     valid &= present
+    if labels == "intent":
+        sent = [[game.commands.get((team_name, i + 1, c), ("",))[0] for c in game.time]
+                for i in range(n)]
+        kicks = np.array([[name == "kick" for name in row] for row in sent])
+        unlabelled = np.array([[name in _NO_LABEL for name in row] for row in sent])
+        play_on = np.array([mode == "play_on" for mode in game.play_mode])
+        valid = play_on[None, :] & present & ~unlabelled
+        actions = np.where(kicks[..., None], actions, intent_labels(game, side, n, lookahead))
     # Own previous action in the self features, as RoboCupTeam feeds its last output back.
     previous = np.concatenate([np.zeros((n, 1, 2), np.float32), actions[:, :-1]], axis=1)
     steps_since = _steps_since_kick_off(game) % episode_length
-    obs = _observations(game, side, params, steps_since, previous)
+    obs = _stale(_observations(game, side, params, steps_since, previous), see_period)
     reset = np.ones(steps, bool)
     reset[1:] = np.diff(game.time) != 1
     reset[1:] &= np.diff(game.time) != 0  # stopped time repeats a cycle: still continuous
     return Demonstrations(observations=obs, actions=actions, valid=valid, reset=reset)
+
+
+LABELS = ("commands", "intent")
+_NO_LABEL = ("tackle", "catch", "move")  # commands the "sim" action space has no label for
+_AIM = 30.0  # degrees: a target further off the body direction is turned to first
+_STILL = 0.05  # m/cycle: slower than this towards the target is standing still
+_TOP_SPEED = 1.0  # m/cycle at full dash, about the default player type's
+
+
+def intent_labels(game: GameLog, side: int, n: int, lookahead: int) -> np.ndarray:
+    """f32[n, T, 2]: for each player and cycle, the (move, rot) that heads for where the
+    player will be ``lookahead`` cycles on (or at the end of its stretch of play_on): nothing
+    when it will stay within ``_STILL`` m a cycle; else a turn to the target's bearing when that
+    is more than ``_AIM`` degrees off the body (a dash backwards when it lies behind), and a
+    dash at the needed share of top speed otherwise."""
+    steps = len(game.time)
+    play_on = np.array([mode == "play_on" for mode in game.play_mode])
+    stretch_end = np.arange(steps)
+    for t in range(steps - 2, -1, -1):
+        if play_on[t] and play_on[t + 1] and game.time[t + 1] - game.time[t] == 1:
+            stretch_end[t] = stretch_end[t + 1]
+    future = np.minimum(np.arange(steps) + lookahead, stretch_end)
+    cycles = np.maximum(future - np.arange(steps), 1)[:, None]
+    position = np.nan_to_num(game.positions[:, side])  # [T, n, 2] server frame
+    offset = position[future] - position
+    speed = np.hypot(offset[..., 0], offset[..., 1]) / cycles
+    bearing = np.degrees(np.arctan2(offset[..., 1], offset[..., 0]))  # server frame, like body
+    relative = (bearing - np.nan_to_num(game.body_deg[:, side]) + 180.0) % 360.0 - 180.0
+    move = np.minimum(speed / _TOP_SPEED, _LABEL_LIMIT)
+    behind = np.abs(relative) >= 180.0 - _AIM
+    turn = (np.abs(relative) > _AIM) & ~behind
+    label = np.zeros((steps, n, 2), np.float32)
+    label[..., 0] = np.where(turn, 0.0, np.where(behind, -move, move))
+    label[..., 1] = np.where(turn, relative / _TURN_SCALE, 0.0)
+    label[speed < _STILL] = 0.0
+    return label.transpose(1, 0, 2)
 
 
 def _steps_since_kick_off(game: GameLog) -> np.ndarray:
@@ -308,6 +369,53 @@ def _observations(
 
 
 ENTITY_LAST_ACTIONS = slice(7, 9)  # last_move, last_rot in ENTITY_FEATURES
+_FRESH = [SELF_FEATURES.index(name) for name in
+          ("time_left", "last_move", "last_rot", "start_x", "start_y")]
+
+
+def _stale(obs: Observation, see_period: int) -> Observation:
+    """Each player's view held from its latest see (player i sees when (t + i) % period == 0),
+    all but the fresh self features (``_FRESH``)."""
+    if see_period == 1:
+        return obs
+    n, steps = obs.entity_mask.shape[:2]
+    t = np.arange(steps)[None, :]
+    source = np.maximum(t - (t + np.arange(n)[:, None]) % see_period, 0)  # [n, T]
+    rows = np.arange(n)[:, None]
+    features = obs.self_features[rows, source].copy()
+    features[..., _FRESH] = obs.self_features[..., _FRESH]
+    return Observation(
+        self_features=features,
+        entities=obs.entities[rows, source],
+        entity_mask=obs.entity_mask[rows, source],
+    )
+_IDLE = 0.05  # |move| and |rot| below this: a dash or turn too small to count
+_MARGIN = 0.1  # how much the chosen part of an action must exceed the other
+
+
+def command_kind(action: jax.Array) -> jax.Array:
+    """i32[...]: what the "sim" rule makes of (move, rot) f[..., 2] away from the ball: 0
+    nothing (both small), 1 a dash (|move| >= |rot|), 2 a turn."""
+    move, rot = jnp.abs(action[..., 0]), jnp.abs(action[..., 1])
+    kind = jnp.where(rot > move, 2, 1)
+    return jnp.where(jnp.maximum(move, rot) < _IDLE, 0, kind)
+
+
+def command_loss(action: jax.Array, label: jax.Array) -> jax.Array:
+    """f32[...]: how far (move, rot) ``action`` is from giving ``label``'s command.
+
+    The "sim" rule dashes (or kicks) when |move| >= |rot| and turns otherwise, so a regression
+    to the mean of a dash (0.9, 0) and a turn (0, 0.5) would be a dash at half power that never
+    turns. Instead: the chosen part is fitted to the label, and the other part must stay at
+    least a margin below it (squared hinge); an idle label pulls both to zero."""
+    move, rot = action[..., 0], action[..., 1]
+    kind = command_kind(label)
+    margin_dash = jax.nn.relu(jnp.abs(rot) - jnp.abs(move) + _MARGIN) ** 2
+    margin_turn = jax.nn.relu(jnp.abs(move) - jnp.abs(rot) + _MARGIN) ** 2
+    dash = (move - label[..., 0]) ** 2 + margin_dash
+    turn = (rot - label[..., 1]) ** 2 + margin_turn
+    idle = move**2 + rot**2
+    return jnp.where(kind == 2, turn, jnp.where(kind == 1, dash, idle))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -318,8 +426,9 @@ class ImitationResult:
     samples: int  # labelled player-cycles in the data
     first_loss: float  # mean training loss over the first 5% of steps
     last_loss: float  # ... and the last 5%
-    held_out_loss: float  # mean squared error of the deterministic action, held out (nan
-    # without any held-out sequence)
+    held_out_agreement: float  # share of held-out labelled cycles where the deterministic
+    # action gives the demonstrator's kind of command (dash or kick, turn, nothing; nan without
+    # any held-out sequence)
     held_out_move_error: float  # mean |move - label| of the deterministic action, held out
     wall_s: float
 
@@ -398,22 +507,16 @@ def imitate(
     def losses(p: Any, o: Observation, a: jax.Array, v: jax.Array, r: jax.Array) -> Any:
         carry = policy.initial_carry(a.shape[:1])
         _, output = policy.apply(p, carry, o, r, 1, method=policy.unroll)
-        distribution = output.distribution()
         weight = v.astype(jnp.float32)
         count = jnp.maximum(weight.sum(), 1.0)
-        squared = jnp.sum((distribution.mode() - a) ** 2, axis=-1)
-        # The spread is fitted around the (fixed) fitted mean, and kept from collapsing: a
-        # near-constant label (a zero turn) would otherwise shrink it to the clamp, where its
-        # huge gradients would drown the mean's.
-        spread = dataclasses.replace(
-            distribution,
-            mean=jax.lax.stop_gradient(distribution.mean),
-            log_std=jnp.maximum(distribution.log_std, _MIN_LOG_STD),
+        action = output.distribution().mode()
+        total = (command_loss(action, a) * weight).sum() / count
+        agree = (command_kind(action) == command_kind(a)).astype(jnp.float32)
+        move_error = jnp.abs(action[..., 0] - a[..., 0])
+        return total, (
+            (agree * weight).sum() / count,
+            (move_error * weight).sum() / count,
         )
-        nll = -spread.log_prob_of_action(a)
-        total = ((squared + _SPREAD_WEIGHT * nll) * weight).sum() / count
-        move_error = jnp.abs(distribution.mode()[..., 0] - a[..., 0])
-        return total, ((squared * weight).sum() / count, (move_error * weight).sum() / count)
 
     @jax.jit
     def update(p: Any, state: Any, o: Observation, a: Any, v: Any, r: Any) -> Any:
@@ -442,20 +545,20 @@ def imitate(
             progress(done, history[-1])
         if max_minutes is not None and time.perf_counter() - began > 60.0 * max_minutes:
             break
-    held_loss, held_error = math.nan, math.nan
+    held_agreement, held_error = math.nan, math.nan
     if len(test):
         totals = np.zeros(2)
         parts = np.array_split(test, max(1, len(test) // 256))
         for part in parts:
             totals += np.asarray(evaluate(params, *batch(part))[1], np.float64) * len(part)
-        held_loss, held_error = (totals / len(test)).tolist()
+        held_agreement, held_error = (totals / len(test)).tolist()
     window = max(1, done // 20)
     result = ImitationResult(
         steps=done,
         samples=int(valid.sum()),
         first_loss=float(np.mean(history[:window])),
         last_loss=float(np.mean(history[-window:])),
-        held_out_loss=held_loss,
+        held_out_agreement=held_agreement,
         held_out_move_error=held_error,
         wall_s=time.perf_counter() - began,
     )
@@ -484,6 +587,9 @@ def imitate_from_logs(
     batch_size: int = 32,
     sequence_length: int = 32,
     learning_rate: float = 1e-3,
+    see_period: int = 3,
+    labels: str = "commands",
+    lookahead: int = 10,
     max_minutes: float | None = None,
     seed: int = 0,
     print_fn: Callable[[str], None] = print,
@@ -512,7 +618,11 @@ def imitate_from_logs(
         seen_names.update(game.team_names)
         for name in team_names:
             if name in game.team_names:
-                demos.append(demonstrations(game, name, env_params))
+                demo = demonstrations(
+                    game, name, env_params, see_period=see_period, labels=labels,
+                    lookahead=lookahead,
+                )
+                demos.append(demo)
         print_fn(f"read {rcg.name}: {', '.join(game.team_names)}")
     if not demos:
         raise ValueError(
@@ -560,8 +670,9 @@ def _model_card(
         f"- {result.steps} steps on {result.samples} labelled player-cycles in "
         f"{result.wall_s / 60:.1f} min.",
         f"- Training loss: {result.first_loss:.3f} (first 5% of steps) -> "
-        f"{result.last_loss:.3f} (last 5%); held-out mean squared error "
-        f"{result.held_out_loss:.3f}.",
+        f"{result.last_loss:.3f} (last 5%).",
+        f"- Held out: the demonstrator's kind of command (dash or kick, turn, nothing) in "
+        f"{result.held_out_agreement:.1%} of labelled cycles.",
         f"- Held-out mean |move - label| of the deterministic action: "
         f"{result.held_out_move_error:.3f}.",
         "- Made by `elevens robocup imitate` (elevens.robocup.imitate).",

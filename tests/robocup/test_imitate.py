@@ -290,6 +290,36 @@ def test_imitation_learns_a_rule_it_is_shown():
     assert result.held_out_move_error < 0.5 * untrained.held_out_move_error
 
 
+def test_the_last_action_can_be_hidden_from_the_policy():
+    """Labels that copy the player's last action: learnable only when it is shown."""
+    demos = []
+    for k in range(4):
+        demo = _synthetic(k)
+        rng = np.random.default_rng(k)
+        last = SELF_FEATURES.index("last_move")
+        features = demo.observations.self_features.copy()
+        features[..., last] = rng.choice([-0.8, 0.8], features.shape[:-1])
+        features[..., last + 1] = 0.0
+        actions = np.stack([features[..., last], features[..., last + 1]], axis=-1)
+        obs = Observation(
+            self_features=features,
+            entities=demo.observations.entities,
+            entity_mask=demo.observations.entity_mask,
+        )
+        demos.append(Demonstrations(obs, actions, np.ones_like(demo.valid), demo.reset))
+    policy = AttentionPolicy(features=32, lstm_features=16)
+    obs0 = jax.tree.map(lambda leaf: jnp.asarray(leaf[:, 0]), demos[0].observations)
+    params = policy.init(jax.random.key(0), policy.initial_carry((3,)), obs0, jnp.ones(3, bool))
+    errors = {}
+    for hide in (False, True):
+        _, result = imitate(
+            policy, params, demos, steps=300, batch_size=8, sequence_length=8,
+            learning_rate=3e-3, held_out=0.25, hide_last_action=hide,
+        )
+        errors[hide] = result.held_out_move_error
+    assert errors[False] < 0.2 and errors[True] > 0.6
+
+
 def test_a_learned_team_is_written_and_plays(tmp_path):
     out = tmp_path / "team"
     result = imitate_from_logs(

@@ -113,6 +113,29 @@ def test_team_moves_before_kick_off_plays_after_it_and_leaves_at_time_over() -> 
     assert sent[-1].startswith("(bye)")
 
 
+def test_a_team_not_told_its_opponents_name_sees_them() -> None:
+    """The recorded see shows players of "RightTeam". A team given no opponent name takes any
+    other named team as the opponent; it used to make one up and see no opponent at all."""
+    server = FakeServer(1, teams=1, wait_s=1.0)
+    masks: list[np.ndarray] = []
+    try:
+        _referee(server, 2, "play_on")
+        team = RoboCupTeam("naive", players_per_team=1, team_name="mine")
+        team.warm_up()
+        act = team.player.act
+
+        def spy(carry: Any, obs: Any, key: Any) -> Any:
+            masks.append(np.asarray(obs.entity_mask))
+            return act(carry, obs, key)
+
+        team.player.act = spy
+        team.play(server.address, max_cycles=8)
+    finally:
+        server.close()
+    # One player a side: entity slot 0 is the opponent (unum 1), slot 1 the ball.
+    assert len(masks) == 8 and any(mask[0, 0] for mask in masks)
+
+
 def test_a_slow_first_policy_call_happens_before_connecting() -> None:
     """Compile before connect: a first call as slow as a JIT compile (longer than the
     server's wait) costs no cycle, because warm_up makes it before (init) goes out."""

@@ -101,7 +101,9 @@ class RoboCupTeam:
             players_per_team=players_per_team,
             view=view,
             episode_length=_DEFAULT_EPISODE,
-            team_names=(team_name, opponent_name or f"{team_name}_opp"),
+            # An opponent whose name we were not told is any other named team: a made-up name
+            # here would hide every opponent from the observations.
+            team_names=(team_name, opponent_name),
             turn_scale=turn_scale,
         )
         self.team_name = team_name

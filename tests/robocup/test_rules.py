@@ -10,10 +10,12 @@ import pytest
 from elevens.robocup.protocol import Catch, Dash, Kick, Move, NoOp, Turn
 from elevens.robocup.rules import (
     CATCH_REACH,
+    GUARD_DEPTH,
     RECOVERING_DASH,
     STAMINA_RESERVE,
     TeamView,
     apply_rules,
+    guard_goal,
     kick_off_positions,
     kick_off_taker,
     kicks_off_next,
@@ -174,3 +176,56 @@ def test_dashes_are_paced_to_keep_the_stamina_reserve() -> None:
     assert pace_dashes([Dash(100.0, 0.0)], [STAMINA_RESERVE + 10.0], [0.0], 100) == [
         Dash(10.0, 0.0)
     ]  # an empty capacity: only the stamina above the reserve
+
+
+def _ball_at(ball: tuple[float, float], goalie=(-51.0, 0.0), heading: float = 0.0) -> TeamView:
+    """A view where every player sees the ball at ``ball`` (team frame)."""
+    position = np.array([goalie, [-20.0, 5.0], [10.0, -5.0]])
+    offset = np.asarray(ball) - position
+    heading_all = np.array([heading, 0.0, 0.0])
+    return _view(
+        position=position,
+        heading=heading_all,
+        ball_distance=np.hypot(offset[:, 0], offset[:, 1]),
+        ball_bearing=np.arctan2(offset[:, 1], offset[:, 0]) - heading_all,
+    )
+
+
+def test_the_goalie_steps_onto_the_line_from_its_goal_to_the_ball() -> None:
+    # Ball far up the left wing: the goalie, facing it, steps to the left of its goal's centre.
+    ball = (-10.0, 30.0)
+    bearing = math.atan2(30.0, -10.0 + 51.0)
+    commands, replaced = guard_goal(POLICY, _ball_at(ball, heading=bearing), "play_on", 0)
+    dash = commands[0]
+    assert replaced and isinstance(dash, Dash) and commands[1:] == POLICY[1:]
+    target = np.array([-52.5, 0.0]) + GUARD_DEPTH[1] * np.array([42.5, 30.0]) / math.hypot(
+        42.5, 30.0
+    )  # a quarter of 52 m, capped at the further depth
+    step = target - np.array([-51.0, 0.0])
+    expected = -math.degrees(math.atan2(step[1], step[0]) - bearing)  # clockwise, off the body
+    assert dash.direction == pytest.approx(expected, abs=1e-6)
+    assert dash.power > 50.0
+    # Standing on its point it only keeps facing the ball.
+    seen_from_point = math.atan2(ball[1] - target[1], ball[0] - target[0])
+    on_point = _ball_at(ball, goalie=tuple(target), heading=seen_from_point + 0.1)
+    commands, _ = guard_goal(POLICY, on_point, "play_on", 0)
+    assert isinstance(commands[0], Turn)
+    assert commands[0].moment == pytest.approx(math.degrees(0.1), abs=1e-6)  # clockwise
+
+
+def test_the_goalie_turns_to_the_ball_first_and_goes_for_it_in_its_area() -> None:
+    behind = _ball_at((-20.0, 0.0), heading=math.pi)  # facing its own goal
+    commands, _ = guard_goal(POLICY, behind, "play_on", 0)
+    assert isinstance(commands[0], Turn) and abs(commands[0].moment) == pytest.approx(180.0)
+    # A ball in the penalty area: straight at it.
+    commands, _ = guard_goal(POLICY, _ball_at((-45.0, 6.0), heading=math.atan2(6.0, 6.0)),
+                             "play_on", 0)
+    assert isinstance(commands[0], Dash) and commands[0].direction == pytest.approx(0.0, abs=1e-6)
+
+
+def test_the_goalie_guard_leaves_set_pieces_and_a_lost_ball_to_the_others() -> None:
+    view = _ball_at((-10.0, 30.0))
+    for mode in ("corner_kick_r", "before_kick_off", "time_over"):
+        assert guard_goal(POLICY, view, mode, 0) == (POLICY, False)
+    assert guard_goal(POLICY, _view(ball_seen=[False] * 3), "play_on", 0) == (POLICY, False)
+    assert guard_goal(POLICY, view, "play_on", 0, goalie=None) == (POLICY, False)

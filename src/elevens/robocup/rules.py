@@ -15,6 +15,9 @@ some of them with short scripted routines, then hands back to the policy when pl
   midfield slot at kick-off, else a long ball up the wing. Everybody else plays the policy.
 * **the goalie catches** in play_on: the ball fresh in its latest see, within the catchable
   area (1.2 m along the catch direction) and the goalie inside its penalty area: ``(catch)``.
+* **the goalie guards the goal** in play (:func:`guard_goal`): it faces the ball and keeps to
+  the line from the goal's centre to the ball, closer to the ball as it comes; a ball inside
+  the penalty area it goes for, so that it can catch it.
 
 Frames as elevens.robocup.observe: each team's own frame (x towards the opponent goal, y up,
 radians, + = to the left); server commands in degrees with + = clockwise.
@@ -39,6 +42,7 @@ __all__ = [
     "apply_rules",
     "kick_off_positions",
     "kicks_off_next",
+    "guard_goal",
     "mode_kind",
 ]
 
@@ -263,3 +267,59 @@ def apply_rules(
         out[goalie] = Catch(_degrees_clockwise(float(view.ball_bearing[goalie])))
         return out, "catch"
     return out, "policy"
+
+
+GUARD_DEPTH = (1.5, 8.0)
+"""How far (metres) the goalie stands from the centre of its goal line: the nearer end when the
+ball is far, up to the further one as the ball comes (a quarter of the ball's distance)."""
+_FACE_BALL = math.radians(25.0)  # the goalie turns to the ball when it is further off than this
+_GUARD_SLACK = 0.7  # metres from its guard point within which the goalie stands still
+
+
+def _ball_estimate(view: TeamView) -> np.ndarray | None:
+    """The ball where the nearest player that sees it saw it (team frame); None if nobody
+    does."""
+    taker = set_piece_taker(view)
+    return None if taker is None else view.ball_position(taker)
+
+
+def guard_goal(
+    commands: Sequence[Command | None],
+    view: TeamView,
+    play_mode: str,
+    side: int,
+    *,
+    goalie: int | None = 0,
+) -> tuple[list[Command | None], bool]:
+    """The goalie's routine in play (module docstring): ``commands`` with the goalie's
+    replaced, and whether it was. Left to the policy when nobody sees the ball, and outside
+    play (set pieces and moves are :func:`apply_rules`')."""
+    out = list(commands)
+    if goalie is None or mode_kind(play_mode, side) != "play":
+        return out, False
+    ball = _ball_estimate(view)
+    if ball is None:
+        return out, False
+    position, heading = view.position[goalie], float(view.heading[goalie])
+    to_ball = ball - position
+    bearing = math.atan2(to_ball[1], to_ball[0]) - heading
+    bearing = math.atan2(math.sin(bearing), math.cos(bearing))
+    goal = np.array([-_HALF[0], 0.0])
+    if _in_own_penalty_area(ball):
+        target = ball  # go for it: the catch rule takes it in reach
+    else:
+        from_goal = ball - goal
+        distance = float(np.linalg.norm(from_goal))
+        depth = float(np.clip(0.25 * distance, *GUARD_DEPTH))
+        target = goal + from_goal / max(distance, 1e-6) * depth
+    offset = target - position
+    gap = float(np.linalg.norm(offset))
+    if abs(bearing) > _FACE_BALL:
+        out[goalie] = Turn(_degrees_clockwise(bearing))
+    elif gap > _GUARD_SLACK:
+        # Facing the ball, it steps to its point in any direction (the server's omni-dash).
+        direction = math.atan2(offset[1], offset[0]) - heading
+        out[goalie] = Dash(float(min(100.0, 30.0 * gap + 20.0)), _degrees_clockwise(direction))
+    else:
+        out[goalie] = Turn(_degrees_clockwise(bearing))
+    return out, True

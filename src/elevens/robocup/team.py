@@ -5,7 +5,7 @@ that someone else runs (``elevens robocup match`` or a competition's), plays unt
 and returns the score. Each cycle: the players' percepts go into a PerceptMemory (the same
 observations as RoboCupEnv), the policy acts, its (move, rot) actions become commands by the
 "sim" rule, and elevens.robocup.rules replaces some of them (kick-off formation, set pieces,
-the goalie's catch).
+the goalie's catch and its guard of the goal).
 
 Nothing is compiled after the first connection: :meth:`RoboCupTeam.warm_up` runs every jitted
 function once before ``(init)`` goes out, so the first cycles of a synch-mode match answer
@@ -40,6 +40,7 @@ from elevens.robocup.protocol import ChangeView, Command, ServerParams
 from elevens.robocup.rules import (
     TeamView,
     apply_rules,
+    guard_goal,
     kick_off_positions,
     mode_kind,
     pace_dashes,
@@ -245,6 +246,8 @@ class RoboCupTeam:
                         halves_played=halves,
                         catch_allowed=counts["cycles"] - last_catch >= _CATCH_BAN,
                     )
+                    if what == "policy":
+                        commands, _ = guard_goal(commands, view, mode, side)
                     stamina, capacity = _staminas(cycle, side, n)
                     commands = pace_dashes(commands, stamina, capacity, int(cycle.server_time))
                 if what == "catch":

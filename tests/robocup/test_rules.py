@@ -229,3 +229,14 @@ def test_the_goalie_guard_leaves_set_pieces_and_a_lost_ball_to_the_others() -> N
         assert guard_goal(POLICY, view, mode, 0) == (POLICY, False)
     assert guard_goal(POLICY, _view(ball_seen=[False] * 3), "play_on", 0) == (POLICY, False)
     assert guard_goal(POLICY, view, "play_on", 0, goalie=None) == (POLICY, False)
+
+
+def test_the_goalie_takes_only_goal_kicks_and_the_ball_it_holds() -> None:
+    # The goalie is nearest the ball (a kick-in near its goal): a field player takes it.
+    view = _view(ball_distance=[5.0, 20.0, 30.0])
+    commands, what = apply_rules(POLICY, view, "kick_in_l", 0)
+    assert what == "set_piece" and commands[0] == POLICY[0] and commands[1] != POLICY[1]
+    commands, _ = apply_rules(POLICY, view, "goal_kick_l", 0)
+    assert commands[0] != POLICY[0] and commands[1:] == POLICY[1:]
+    commands, _ = apply_rules(POLICY, view, "kick_in_l", 0, goalie=None)
+    assert commands[0] != POLICY[0]  # no goalie: the nearest player, whoever it is

@@ -10,7 +10,8 @@ some of them with short scripted routines, then hands back to the policy when pl
   slot in its own half (the simulator's formation, scaled to 105 x 68); the kick-off taker
   stands at the ball when its side kicks off.
 * **our set piece** (kick_off, kick_in, corner_kick, free_kick, goal_kick, indirect_free_kick):
-  the player nearest the ball (the goalie when it holds the ball after a catch) turns to it,
+  the player nearest the ball (the goalie only when it holds the ball after a catch, or for a
+  goal kick) turns to it,
   runs to it and kicks: at the goal from within ``SHOOT_RANGE`` of it, a pass back to a
   midfield slot at kick-off, else a long ball up the wing. Everybody else plays the policy.
 * **the goalie catches** in play_on: the ball fresh in its latest see, within the catchable
@@ -205,9 +206,12 @@ def _go_to_ball(view: TeamView, player: int) -> Command:
     return Dash(100.0 if view.ball_distance[player] > 3.0 else 50.0)
 
 
-def set_piece_taker(view: TeamView) -> int | None:
-    """The player nearest the ball among those who see it; None when nobody does."""
+def set_piece_taker(view: TeamView, exclude: int | None = None) -> int | None:
+    """The player nearest the ball among those who see it (but ``exclude``); None when nobody
+    does."""
     seen = np.flatnonzero(view.ball_seen)
+    if exclude is not None:
+        seen = seen[seen != exclude]
     if len(seen) == 0:
         return None
     return int(seen[np.argmin(view.ball_distance[seen])])
@@ -245,7 +249,10 @@ def apply_rules(
         holder = goalie is not None and view.ball_seen[goalie] and (
             view.ball_distance[goalie] <= KICKABLE and play_mode.startswith("free_kick")
         )
-        taker = goalie if holder else set_piece_taker(view)
+        # The goalie leaves its goal for a goal kick or a ball it holds only: it once ran 30 m
+        # to a kick-in and helios-base scored into the empty goal.
+        stays = None if play_mode.startswith("goal_kick") else goalie
+        taker = goalie if holder else set_piece_taker(view, exclude=stays)
         if taker is None:
             return out, "policy"
         if view.ball_distance[taker] <= KICKABLE:

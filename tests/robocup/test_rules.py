@@ -12,7 +12,9 @@ from elevens.robocup.rules import (
     CATCH_REACH,
     GUARD_DEPTH,
     RECOVERING_DASH,
+    SECOND_TOUCH_WAIT,
     STAMINA_RESERVE,
+    SecondTouch,
     TeamView,
     apply_rules,
     guard_goal,
@@ -20,6 +22,7 @@ from elevens.robocup.rules import (
     kick_off_taker,
     kicks_off_next,
     mode_kind,
+    no_second_touch,
     pace_dashes,
 )
 
@@ -53,7 +56,12 @@ POLICY = [Dash(10.0), Dash(20.0), Dash(30.0)]
         ("goal_kick_l", 0, "ours"),
         ("play_on", 0, "play"),
         ("drop_ball", 1, "play"),
-        ("offside_l", 0, "play"),
+        ("offside_l", 0, "theirs"),  # left was offside: a free kick to the right follows
+        ("offside_l", 1, "play"),
+        ("free_kick_fault_l", 0, "theirs"),  # a fault, not the left team's free kick
+        ("free_kick_fault_l", 1, "play"),
+        ("back_pass_r", 1, "theirs"),
+        ("foul_charge_l", 1, "play"),
         ("time_over", 0, "over"),
     ],
 )
@@ -225,8 +233,13 @@ def test_the_goalie_turns_to_the_ball_first_and_goes_for_it_in_its_area() -> Non
 
 def test_the_goalie_guard_leaves_set_pieces_and_a_lost_ball_to_the_others() -> None:
     view = _ball_at((-10.0, 30.0))
-    for mode in ("corner_kick_r", "before_kick_off", "time_over"):
+    for mode in ("corner_kick_l", "before_kick_off", "time_over"):
         assert guard_goal(POLICY, view, mode, 0) == (POLICY, False)
+    # In the opponents' set pieces it guards too, but does not go for a ball in its area.
+    assert guard_goal(POLICY, view, "corner_kick_r", 0)[1]
+    in_area = _ball_at((-45.0, 6.0), heading=math.atan2(6.0, 6.0))
+    commands, _ = guard_goal(POLICY, in_area, "free_kick_r", 0)
+    assert isinstance(commands[0], Dash) and commands[0].direction != pytest.approx(0.0)
     assert guard_goal(POLICY, _view(ball_seen=[False] * 3), "play_on", 0) == (POLICY, False)
     assert guard_goal(POLICY, view, "play_on", 0, goalie=None) == (POLICY, False)
 
@@ -240,3 +253,18 @@ def test_the_goalie_takes_only_goal_kicks_and_the_ball_it_holds() -> None:
     assert commands[0] != POLICY[0] and commands[1:] == POLICY[1:]
     commands, _ = apply_rules(POLICY, view, "kick_in_l", 0, goalie=None)
     assert commands[0] != POLICY[0]  # no goalie: the nearest player, whoever it is
+
+
+def test_a_set_piece_taker_does_not_touch_the_ball_again_before_a_teammate() -> None:
+    kicks = [Kick(50.0, 0.0), Kick(60.0, 0.0), Dash(30.0)]
+    touch = SecondTouch(taker=1, since=10)
+    away = _view(ball_distance=[40.0, 0.5, 30.0])  # the taker is at the ball again
+    assert no_second_touch(kicks, away, touch, 12) == [kicks[0], None, kicks[2]]
+    assert touch.taker == 1
+    # A teammate reaches the ball: the ban is over.
+    reached = _view(ball_distance=[40.0, 0.5, 0.8])
+    assert no_second_touch(kicks, reached, touch, 13) == kicks and touch.taker is None
+    # Or the wait runs out (an opponent may have touched it unseen).
+    touch = SecondTouch(taker=1, since=10)
+    assert no_second_touch(kicks, away, touch, 10 + SECOND_TOUCH_WAIT + 1) == kicks
+    assert no_second_touch(kicks, away, SecondTouch(), 12) == kicks  # no set piece: no ban

@@ -16,9 +16,12 @@ some of them with short scripted routines, then hands back to the policy when pl
   midfield slot at kick-off, else a long ball up the wing. Everybody else plays the policy.
 * **the goalie catches** in play_on: the ball fresh in its latest see, within the catchable
   area (1.2 m along the catch direction) and the goalie inside its penalty area: ``(catch)``.
-* **the goalie guards the goal** in play (:func:`guard_goal`): it faces the ball and keeps to
-  the line from the goal's centre to the ball, closer to the ball as it comes; a ball inside
-  the penalty area it goes for, so that it can catch it.
+* **the goalie guards the goal** in play and in the opponents' set pieces (:func:`guard_goal`):
+  it faces the ball and keeps to the line from the goal's centre to the ball, closer to the
+  ball as it comes; a ball inside the penalty area it goes for, so that it can catch it.
+* **no second touch** (:func:`no_second_touch`): the player that took a set piece does not kick
+  the ball again before a teammate has been at it (the server gives the opponents a free kick
+  for it, ``free_kick_fault``), or until ``SECOND_TOUCH_WAIT`` cycles have passed.
 
 Frames as elevens.robocup.observe: each team's own frame (x towards the opponent goal, y up,
 radians, + = to the left); server commands in degrees with + = clockwise.
@@ -45,6 +48,7 @@ __all__ = [
     "kicks_off_next",
     "guard_goal",
     "mode_kind",
+    "no_second_touch",
 ]
 
 CATCH_REACH = 1.15  # metres: server::catchable_area_l = 1.2, less the see's quantisation
@@ -66,6 +70,17 @@ SET_PIECES = (
     "indirect_free_kick",
 )
 MOVE_MODES = ("before_kick_off", "goal_l", "goal_r")
+# Faults, named by the side that committed them (before SET_PIECES: "free_kick_fault_l" is
+# the left team's fault, not its free kick).
+FAULTS = (
+    "free_kick_fault",
+    "catch_fault",
+    "back_pass",
+    "foul_charge",
+    "foul_push",
+    "foul_multiple_attack",
+    "offside",
+)
 
 
 STAMINA_RESERVE = 3000.0
@@ -116,6 +131,9 @@ def mode_kind(play_mode: str, side: int) -> str:
         return "over"
     if play_mode in MOVE_MODES:
         return "move"
+    for fault in FAULTS:  # the side named committed it: the other side's free kick follows
+        if play_mode.startswith(fault + "_") and play_mode[-1] in "lr":
+            return "theirs" if play_mode[-1] == "lr"[side] else "play"
     for piece in SET_PIECES:
         if play_mode.startswith(piece + "_") and play_mode[-1] in "lr":
             return "ours" if play_mode[-1] == "lr"[side] else "theirs"
@@ -298,11 +316,11 @@ def guard_goal(
     *,
     goalie: int | None = 0,
 ) -> tuple[list[Command | None], bool]:
-    """The goalie's routine in play (module docstring): ``commands`` with the goalie's
-    replaced, and whether it was. Left to the policy when nobody sees the ball, and outside
-    play (set pieces and moves are :func:`apply_rules`')."""
+    """The goalie's routine in play and in the opponents' set pieces (module docstring):
+    ``commands`` with the goalie's replaced, and whether it was. Left to the policy when nobody
+    sees the ball; our set pieces and moves are :func:`apply_rules`'."""
     out = list(commands)
-    if goalie is None or mode_kind(play_mode, side) != "play":
+    if goalie is None or mode_kind(play_mode, side) not in ("play", "theirs"):
         return out, False
     ball = _ball_estimate(view)
     if ball is None:
@@ -312,7 +330,7 @@ def guard_goal(
     bearing = math.atan2(to_ball[1], to_ball[0]) - heading
     bearing = math.atan2(math.sin(bearing), math.cos(bearing))
     goal = np.array([-_HALF[0], 0.0])
-    if _in_own_penalty_area(ball):
+    if _in_own_penalty_area(ball) and mode_kind(play_mode, side) == "play":
         target = ball  # go for it: the catch rule takes it in reach
     else:
         from_goal = ball - goal
@@ -330,3 +348,40 @@ def guard_goal(
     else:
         out[goalie] = Turn(_degrees_clockwise(bearing))
     return out, True
+
+
+SECOND_TOUCH_WAIT = 50
+"""Cycles after which a set piece's taker may kick again even if no teammate was seen at the
+ball (an opponent may have touched it, which the team cannot see for sure)."""
+
+
+@dataclasses.dataclass
+class SecondTouch:
+    """Who took the last set piece, and when (cycles of this team's clock)."""
+
+    taker: int | None = None
+    since: int = 0
+
+
+def no_second_touch(
+    commands: Sequence[Command | None],
+    view: TeamView,
+    state: SecondTouch,
+    cycle: int,
+    *,
+    kickable: float = KICKABLE,
+) -> list[Command | None]:
+    """``commands`` with the set-piece taker's kick dropped (no command) while the ban of the
+    module docstring lasts; ``state`` is updated (the ban ends when a teammate is within
+    ``kickable`` of the ball, or after ``SECOND_TOUCH_WAIT`` cycles)."""
+    out = list(commands)
+    if state.taker is None:
+        return out
+    others = [i for i in range(len(out)) if i != state.taker]
+    at_ball = any(view.ball_seen[i] and view.ball_distance[i] <= kickable for i in others)
+    if at_ball or cycle - state.since > SECOND_TOUCH_WAIT:
+        state.taker = None
+        return out
+    if isinstance(out[state.taker], Kick):
+        out[state.taker] = None
+    return out

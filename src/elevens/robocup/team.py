@@ -5,7 +5,7 @@ that someone else runs (``elevens robocup match`` or a competition's), plays unt
 and returns the score. Each cycle: the players' percepts go into a PerceptMemory (the same
 observations as RoboCupEnv), the policy acts, its (move, rot) actions become commands by the
 "sim" rule, and elevens.robocup.rules replaces some of them (kick-off formation, set pieces,
-the goalie's catch and its guard of the goal).
+the goalie's catch and its guard of the goal, no second touch by a set piece's taker).
 
 Nothing is compiled after the first connection: :meth:`RoboCupTeam.warm_up` runs every jitted
 function once before ``(init)`` goes out, so the first cycles of a synch-mode match answer
@@ -36,13 +36,15 @@ from elevens.robocup.env import (
 )
 from elevens.robocup.observe import PLAYER_DECAY, PerceptMemory
 from elevens.robocup.play import load_robocup_team
-from elevens.robocup.protocol import ChangeView, Command, ServerParams
+from elevens.robocup.protocol import ChangeView, Command, Kick, ServerParams
 from elevens.robocup.rules import (
+    SecondTouch,
     TeamView,
     apply_rules,
     guard_goal,
     kick_off_positions,
     mode_kind,
+    no_second_touch,
     pace_dashes,
 )
 from elevens.robocup.server import ServerAddress
@@ -204,6 +206,7 @@ class RoboCupTeam:
         step = 0
         halves = 1  # the half being played (before_kick_off again: the next one)
         last_catch = -_CATCH_BAN
+        touch = SecondTouch()
         previous_mode = cycle.play_mode
         ended = "stopped"
         cycle = client.step([ChangeView(self.config.view)] * n)
@@ -238,6 +241,7 @@ class RoboCupTeam:
                 what = "policy"
                 if self.rules:
                     view = _team_view(memory, side)
+                    policy_commands = commands
                     commands, what = apply_rules(
                         commands,
                         view,
@@ -246,8 +250,13 @@ class RoboCupTeam:
                         halves_played=halves,
                         catch_allowed=counts["cycles"] - last_catch >= _CATCH_BAN,
                     )
+                    if what == "set_piece":
+                        _note_set_piece_kick(policy_commands, commands, touch, counts["cycles"])
                     if what == "policy":
                         commands, _ = guard_goal(commands, view, mode, side)
+                        commands = no_second_touch(
+                            commands, view, touch, counts["cycles"], kickable=kickable
+                        )
                     stamina, capacity = _staminas(cycle, side, n)
                     commands = pace_dashes(commands, stamina, capacity, int(cycle.server_time))
                 if what == "catch":
@@ -276,6 +285,15 @@ class RoboCupTeam:
             warm_up_s=self.warm_up_s,
             ended=ended,
         )
+
+
+def _note_set_piece_kick(
+    before: list[Command | None], after: list[Command | None], touch: SecondTouch, cycle: int
+) -> None:
+    """Remember the player whose command a set-piece routine replaced by a kick."""
+    for i, (policy, routine) in enumerate(zip(before, after, strict=True)):
+        if isinstance(routine, Kick) and routine is not policy:
+            touch.taker, touch.since = i, cycle
 
 
 def _team_view(memory: PerceptMemory, side: int) -> TeamView:

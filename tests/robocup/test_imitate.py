@@ -18,6 +18,7 @@ from elevens.cli.app import main
 from elevens.env import observe as observe_lib
 from elevens.env.state import SELF_FEATURES, Observation
 from elevens.nets.policy import AttentionPolicy
+from elevens.robocup.actions import ActionScaling, action_to_command
 from elevens.robocup.env import RoboCupConfig, robocup_env_params
 from elevens.robocup.imitate import (
     Demonstrations,
@@ -30,8 +31,11 @@ from elevens.robocup.imitate import (
     intent_labels,
     label_of_command,
     read_game_log,
+    thesis12_label,
+    thesis12_loss,
 )
 from elevens.robocup.play import load_robocup_team
+from elevens.robocup.protocol import Dash, Kick, Tackle, Turn
 
 LOGS = Path(__file__).parent / "logs"
 RCG, RCL = LOGS / "helios_excerpt.rcg", LOGS / "helios_excerpt.rcl"
@@ -96,10 +100,16 @@ def test_demonstrations_match_the_simulator_observation_and_label_play_on_only()
     assert demo.actions.shape == (11, steps, 2)
     assert demo.observations.entities.shape == (11, steps, 22, 11)
     play_on = np.array([mode == "play_on" for mode in game.play_mode])
-    has_body_command = np.array(
-        [[("HELIOS_b", unum, t) in game.commands for t in game.time] for unum in range(1, 12)]
+    labelled = np.array(
+        [
+            [label_of_command(*game.commands.get(("HELIOS_b", unum, t), ("move", ()))) is not None
+             for t in game.time]
+            for unum in range(1, 12)
+        ]
     )
-    np.testing.assert_array_equal(demo.valid, has_body_command & play_on)
+    np.testing.assert_array_equal(demo.valid, labelled & play_on)
+    assert game.commands[("HELIOS_b", 6, 45)] == ("tackle", (108.0, 1.0))  # (tackle 108 on)
+    assert not demo.valid[5, list(game.time).index(45)]
     t = list(game.time).index(30)
     # The right team sees itself attacking +x: its own x is the server's x mirrored.
     x_index = SELF_FEATURES.index("x")
@@ -350,3 +360,91 @@ def test_the_command_names_a_missing_team_and_missing_logs(tmp_path, capsys):
         main(["robocup", "imitate", "--logs", str(tmp_path), "--team-name", "X",
               "--out", str(tmp_path / "t")])
     assert "no .rcg/.rcl pair" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("command", "expected"),
+    [
+        (("dash", (60.0, 0.0)), Dash(60.0, 0.0)),
+        (("dash", (60.0, 180.0)), Dash(60.0, 180.0)),  # backwards: a negative power
+        (("dash", (80.0, -135.0)), Dash(80.0, -135.0)),
+        (("dash", (50.0, 45.0)), Dash(50.0, 45.0)),
+        (("kick", (80.0, 30.0)), Kick(80.0, 30.0)),
+        (("kick", (40.0, -120.0)), Kick(40.0, -120.0)),
+        (("turn", (-72.0,)), Turn(-72.0)),
+        (("tackle", (45.0, 1.0)), Tackle(45.0, foul=True)),
+        (("tackle", (-30.0, -1.0)), Tackle(-30.0, foul=False)),
+    ],
+)
+def test_a_thesis12_label_maps_back_to_the_command_sent(command, expected):
+    label = thesis12_label(*command)
+    assert label is not None and label.shape == (12,)
+    assert np.argmax(label[:5]) == {Dash: 0, Kick: 1, Turn: 2, Tackle: 3}[type(expected)]
+    sent = action_to_command(label)
+    assert type(sent) is type(expected)
+    for field in ("power", "direction", "moment"):
+        if hasattr(expected, field):
+            assert getattr(sent, field) == pytest.approx(getattr(expected, field), abs=1e-3)
+    if isinstance(expected, Tackle):
+        assert sent.foul == expected.foul
+    assert thesis12_label("catch", (10.0,)) is None and thesis12_label("move", (1.0, 2.0)) is None
+
+
+def test_the_thesis12_loss_picks_one_command_and_fits_only_its_parameters():
+    dash = jnp.asarray(thesis12_label("dash", (60.0, 0.0)))
+    good = jnp.zeros(12).at[:5].set(-10.0).at[0].set(10.0).at[5].set(jnp.arctanh(0.6))
+    loss, agree, error = thesis12_loss(good, dash)
+    assert float(loss) < 1e-3 and float(agree) == 1.0 and float(error) < 1e-5
+    # The kick's parameters are free when the label is a dash.
+    assert float(thesis12_loss(good.at[7:9].set(3.0), dash)[0]) == pytest.approx(float(loss))
+    wrong = good.at[2].set(20.0)  # a turn wins the scores
+    loss_wrong, agree_wrong, _ = thesis12_loss(wrong, dash)
+    assert float(agree_wrong) == 0.0 and float(loss_wrong) > 3.0
+
+
+def test_imitation_of_thesis12_commands_chooses_between_them():
+    """Turn when the ball is to the left, dash at 0.6 when it is to the right: a choice a
+    (move, rot) regression blends, the selection scores make."""
+    demos = []
+    for k in range(4):
+        demo = _synthetic(k)
+        left = demo.observations.self_features[..., SELF_FEATURES.index("ball_sin_bearing")] > 0
+        turn, dash = thesis12_label("turn", (90.0,)), thesis12_label("dash", (60.0, 0.0))
+        actions = np.where(left[..., None], turn, dash).astype(np.float32)
+        demos.append(Demonstrations(demo.observations, actions, demo.valid, demo.reset))
+    policy = AttentionPolicy(features=32, lstm_features=16, num_actions=12)
+    obs0 = jax.tree.map(lambda leaf: jnp.asarray(leaf[:, 0]), demos[0].observations)
+    params = policy.init(jax.random.key(0), policy.initial_carry((3,)), obs0, jnp.ones(3, bool))
+    _, result = imitate(
+        policy, params, demos, steps=400, batch_size=8, sequence_length=8, learning_rate=3e-3,
+        held_out=0.25,
+    )
+    assert result.held_out_agreement > 0.95 and result.held_out_move_error < 0.1
+
+
+def test_a_thesis12_team_plays_the_server_only(tmp_path):
+    out = tmp_path / "team12"
+    imitate_from_logs(
+        [LOGS], ["HELIOS_b"], out, init_from="elevens-2v2", steps=2, batch_size=2,
+        sequence_length=8, action="thesis12", print_fn=lambda _: None,
+    )
+    from elevens.robocup.team import RoboCupTeam
+    from elevens.runs.teams import load_team
+
+    team = load_team(str(out))
+    assert team.actions == 12
+    with pytest.raises(ValueError, match="12-value RoboCup action.*rcssserver only"):
+        team.check_size(11)  # what every simulator game checks
+    with pytest.raises(ValueError, match="must be 'thesis12', not 'sim'"):
+        load_robocup_team(str(out), "sim")
+    player = RoboCupTeam(str(out), team_name="mine")
+    action = np.zeros((11, 12), np.float32)
+    action[:, 1] = 1.0  # kick
+    action[:, 7:9] = (0.5, -0.25)  # power 75, 45 degrees anticlockwise
+    last, commands = player._commands(action, np.full(11, 0.5), 1.085, ActionScaling())
+    assert commands == [Kick(75.0, -45.0)] * 11
+    assert not last.any()  # a kick moves no one: (0, 0) is the last action it observes
+    action[:, 1] = -1.0  # a dash at 0.5 wins now
+    action[:, 5] = 0.5
+    last, commands = player._commands(action, np.full(11, 0.5), 1.085, ActionScaling())
+    assert commands == [Dash(50.0, 0.0)] * 11 and np.allclose(last, [0.5, 0.0])

@@ -160,6 +160,10 @@ class RoboCupImitateArgs:
     where the player will be --lookahead cycles on (kicks stay as sent)."""
     lookahead: int = 10
     """Cycles ahead for --labels intent."""
+    action: Literal["sim", "thesis12"] = "sim"
+    """sim: the policy gives (move, rot), as every simulator-trained team; thesis12: the
+    thesis's 12-value RoboCup action (a dash, kick, turn, tackle or nothing, chosen by the
+    largest of five scores, with its direction): it plays rcssserver only."""
     see_period: int = 3
     """Cycles between two see messages of an elevens player in a match (3: wide view, synch
     mode); its view is held in between."""
@@ -313,7 +317,7 @@ def match(args: RoboCupMatchArgs) -> None:
 
     for side in (team0, team1):
         if isinstance(side, ElevensTeam):  # a bad spec fails here, not in a child process
-            load_robocup_team(side.spec, "sim")
+            load_robocup_team(side.spec, "sim", any_action=True)
     results = play_matches(
         team0, team1, matches=args.matches, players_per_team=args.players,
         synch=not args.real_time, half_time=args.half_time, log_dir=args.log_dir,
@@ -336,6 +340,7 @@ def imitate(args: RoboCupImitateArgs) -> None:
             players_per_team=args.players, steps=args.steps, batch_size=args.batch_size,
             sequence_length=args.sequence_length, learning_rate=args.learning_rate,
             see_period=args.see_period, labels=args.labels, lookahead=args.lookahead,
+            action=args.action,
             max_minutes=args.max_minutes, seed=args.seed,
             print_fn=(lambda _: None) if args.json else print,
         )

@@ -222,6 +222,9 @@ class AttentionPolicy(nn.Module):
     """False: a feedforward head without memory."""
     activation: Activation = nn.relu
     """Non-linearity of the feedforward blocks."""
+    num_actions: int = NUM_ACTIONS
+    """Action values: 2, the simulator's (move, rot); 12, the thesis's RoboCup action
+    (elevens.robocup.actions), for teams that play rcssserver only."""
 
     def setup(self) -> None:
         self.encode_ff = FF2(self.features, activation=self.activation)
@@ -234,7 +237,9 @@ class AttentionPolicy(nn.Module):
             self.lstm_features, self.lstm_layers, self.use_lstm, self.activation
         )
         # Small initial outputs: the first policy is near mean 0, std 1 for every observation.
-        self.action_head = nn.Dense(2 * NUM_ACTIONS, kernel_init=nn.initializers.orthogonal(0.01))
+        self.action_head = nn.Dense(
+            2 * self.num_actions, kernel_init=nn.initializers.orthogonal(0.01)
+        )
 
     @nn.nowrap
     def initial_carry(self, batch_shape: Sequence[int]) -> PolicyCarry:
@@ -294,7 +299,8 @@ class AttentionPolicy(nn.Module):
         """out_r's output f32[..., lstm_features] -> the action distribution's parameters."""
         out = self.action_head(y)
         return PolicyOutput(
-            mean=out[..., :NUM_ACTIONS], log_std=clamp_log_std(out[..., NUM_ACTIONS:])
+            mean=out[..., : self.num_actions],
+            log_std=clamp_log_std(out[..., self.num_actions :]),
         )
 
     def __call__(

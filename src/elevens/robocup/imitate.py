@@ -65,6 +65,7 @@ _PLAYMODE = re.compile(r"^\(playmode (\d+) (\S+)\)")
 _TEAM = re.compile(r"^\(team \d+ (\S+) (\S+) \d+ \d+")
 _RECV = re.compile(r"^(\d+),(\d+)\tRecv (\S+)_(\d+): (.*)$")
 _COMMAND = re.compile(r"\((dash|turn|kick|tackle|catch|move)((?: [^()\s]+)*)\)")
+_FLAGS = {"on": 1.0, "off": -1.0}  # (tackle DIR on|off): the foul flag
 _TURN_SCALE = 180.0  # degrees at rot = 1: RoboCupTeam's default turn_scale
 _MAX_POWER = 100.0  # server::maxpower and max_dash_power
 _LABEL_LIMIT = 0.95  # keep targets off tanh's ends, where atanh diverges
@@ -170,9 +171,9 @@ def _read_commands(
             if body is None:
                 continue
             try:
-                arguments = tuple(float(a) for a in body.group(2).split())
+                arguments = tuple(_FLAGS.get(a) or float(a) for a in body.group(2).split())
             except ValueError:
-                continue  # (move) / (catch) with a malformed argument: not a label anyway
+                continue  # a malformed argument: no label
             key = (found.group(3), int(found.group(4)), int(found.group(1)))
             commands[key] = (body.group(1), arguments)
     return commands
@@ -193,6 +194,38 @@ def label_of_command(name: str, arguments: Sequence[float]) -> tuple[float, floa
     return None
 
 
+_SCORES = 5  # the selection scores at the head of a thesis12 action (ActionIndex 0-4)
+# Which of the 12 values each selected command (dash, kick, turn, tackle, no-op) uses.
+_PARAMETERS = np.zeros((_SCORES, 12), bool)
+for _choice, _used in enumerate(((5, 6), (7, 8), (9,), (10, 11), ())):
+    _PARAMETERS[_choice, list(_used)] = True
+
+
+def thesis12_label(name: str, arguments: Sequence[float]) -> np.ndarray | None:
+    """A body command -> its 12-value action (``elevens.robocup.actions``, thesis table 4.1):
+    +1 for its selection score, -1 for the others, its parameters in [-1, 1] (the others 0);
+    None for catch and move (the goalie's and the set pieces' routines send those)."""
+    label = np.zeros(12, np.float32)
+    label[:_SCORES] = -1.0
+    first = arguments[0] if arguments else 0.0
+    second = arguments[1] if len(arguments) > 1 else 0.0
+    if name == "dash":
+        power, direction = first / _MAX_POWER, second
+        if abs(direction) > 90.0:  # the thesis dashes backwards with a negative power
+            power, direction = -power, math.remainder(direction + 180.0, 360.0)
+        label[[0, 5, 6]] = 1.0, power, direction / 90.0
+    elif name == "kick":
+        label[[1, 7, 8]] = 1.0, 2.0 * first / _MAX_POWER - 1.0, second / 180.0
+    elif name == "turn":
+        label[[2, 9]] = 1.0, first / _TURN_SCALE
+    elif name == "tackle":
+        label[[3, 10, 11]] = 1.0, 1.0 if second > 0 else -1.0, first / 90.0
+    else:
+        return None
+    label[_SCORES:] = np.clip(label[_SCORES:], -_LABEL_LIMIT, _LABEL_LIMIT)
+    return label
+
+
 def _limit(value: float) -> float:
     return float(min(max(value, -_LABEL_LIMIT), _LABEL_LIMIT))
 
@@ -202,7 +235,7 @@ class Demonstrations:
     """One team's play in one match, per player: observations and labels, ``T`` cycles."""
 
     observations: Observation  # leading axes [n, T]
-    actions: np.ndarray  # f32[n, T, 2]
+    actions: np.ndarray  # f32[n, T, 2] (move, rot), or f32[n, T, 12] the thesis's action
     valid: np.ndarray  # bool[n, T]: a labelled play_on cycle (in the loss)
     reset: np.ndarray  # bool[T]: a jump in the log (restart the memory)
 
@@ -220,6 +253,7 @@ def demonstrations(
     see_period: int = 3,
     labels: str = "commands",
     lookahead: int = 10,
+    action: str = "sim",
 ) -> Demonstrations:
     """The observations and labels of ``team_name``'s players in ``game`` (see the module
     docstring). ``params``: the server field's EnvParams (``robocup_env_params``);
@@ -230,7 +264,15 @@ def demonstrations(
 
     ``labels``: "commands" labels each cycle with the command sent (the module docstring);
     "intent" with the command that takes the player where it will be ``lookahead`` cycles on
-    (:func:`intent_labels`)."""
+    (:func:`intent_labels`).
+
+    ``action``: "sim" labels (move, rot) as above; "thesis12" the 12-value action of each
+    command sent (:func:`thesis12_label`; labels must be "commands")."""
+    if action not in ACTIONS:
+        raise ValueError(f"action={action!r} is invalid: it must be one of {', '.join(ACTIONS)}")
+    if action == "thesis12" and labels != "commands":
+        raise ValueError(f"labels={labels!r} is for the sim action only: thesis12 labels the "
+                         "commands sent")
     if labels not in LABELS:
         raise ValueError(f"labels={labels!r} is invalid: it must be one of {', '.join(LABELS)}")
     if lookahead < 1:
@@ -246,6 +288,7 @@ def demonstrations(
     n = params.players_per_team
     steps = len(game.time)
     actions = np.zeros((n, steps, 2), np.float32)
+    full = np.zeros((n, steps, 12), np.float32)
     valid = np.zeros((n, steps), bool)
     for i in range(n):
         for t, (cycle, mode) in enumerate(zip(game.time.tolist(), game.play_mode, strict=True)):
@@ -254,6 +297,11 @@ def demonstrations(
             if label is not None:
                 actions[i, t] = label
                 valid[i, t] = mode == "play_on"
+            if action == "thesis12" and command is not None:
+                twelve = thesis12_label(*command)
+                if twelve is not None:
+                    full[i, t] = twelve
+                    valid[i, t] = mode == "play_on"
     present = np.isfinite(game.positions[:, side, :, 0]).T  # [n, T]
     valid &= present
     if labels == "intent":
@@ -271,10 +319,13 @@ def demonstrations(
     reset = np.ones(steps, bool)
     reset[1:] = np.diff(game.time) != 1
     reset[1:] &= np.diff(game.time) != 0  # stopped time repeats a cycle: still continuous
+    if action == "thesis12":
+        actions = full  # the (move, rot) summary above stays the last action it observes
     return Demonstrations(observations=obs, actions=actions, valid=valid, reset=reset)
 
 
 LABELS = ("commands", "intent")
+ACTIONS = ("sim", "thesis12")
 _NO_LABEL = ("tackle", "catch", "move")  # commands the "sim" action space has no label for
 _AIM = 30.0  # degrees: a target further off the body direction is turned to first
 _STILL = 0.05  # m/cycle: slower than this towards the target is standing still
@@ -401,6 +452,26 @@ def command_kind(action: jax.Array) -> jax.Array:
     return jnp.where(jnp.maximum(move, rot) < _IDLE, 0, kind)
 
 
+def thesis12_loss(mean: jax.Array, label: jax.Array) -> tuple[jax.Array, ...]:
+    """For 12-value actions (:func:`thesis12_label`), per cycle: (loss, 1.0 where the largest
+    selection score is the label's command, the mean |error| of that command's parameters).
+
+    The five scores are fitted to the label's +1 / -1 and the largest picks the command, so
+    however uncertain the fit, one command is sent with its own parameters (a (move, rot)
+    regression blends a dash and a turn into a weak dash). The parameters of the label's
+    command are fitted; the others are free. (A softmax cross-entropy on the scores stayed at
+    the class prior on a task this fit learns.)"""
+    choice = jnp.argmax(label[..., :_SCORES], axis=-1)
+    action = jnp.tanh(mean)
+    scores = jnp.sum((action[..., :_SCORES] - label[..., :_SCORES]) ** 2, axis=-1)
+    used = jnp.asarray(_PARAMETERS)[choice]
+    error = jnp.where(used, action - label, 0.0)
+    squared = jnp.sum(error**2, axis=-1)
+    agree = (jnp.argmax(mean[..., :_SCORES], axis=-1) == choice).astype(jnp.float32)
+    count = jnp.maximum(used.sum(axis=-1), 1)
+    return scores + squared, agree, jnp.abs(error).sum(axis=-1) / count
+
+
 def command_loss(action: jax.Array, label: jax.Array) -> jax.Array:
     """f32[...]: how far (move, rot) ``action`` is from giving ``label``'s command.
 
@@ -516,10 +587,14 @@ def imitate(
         _, output = policy.apply(p, carry, o, r, 1, method=policy.unroll)
         weight = v.astype(jnp.float32)
         count = jnp.maximum(weight.sum(), 1.0)
-        action = output.distribution().mode()
-        total = (command_loss(action, a) * weight).sum() / count
-        agree = (command_kind(action) == command_kind(a)).astype(jnp.float32)
-        move_error = jnp.abs(action[..., 0] - a[..., 0])
+        if a.shape[-1] == 12:
+            fit, agree, move_error = thesis12_loss(output.mean, a)
+        else:
+            action = output.distribution().mode()
+            fit = command_loss(action, a)
+            agree = (command_kind(action) == command_kind(a)).astype(jnp.float32)
+            move_error = jnp.abs(action[..., 0] - a[..., 0])
+        total = (fit * weight).sum() / count
         return total, (
             (agree * weight).sum() / count,
             (move_error * weight).sum() / count,
@@ -605,6 +680,7 @@ def imitate_from_logs(
     see_period: int = 3,
     labels: str = "commands",
     lookahead: int = 10,
+    action: str = "sim",
     max_minutes: float | None = None,
     seed: int = 0,
     print_fn: Callable[[str], None] = print,
@@ -635,7 +711,7 @@ def imitate_from_logs(
             if name in game.team_names:
                 demo = demonstrations(
                     game, name, env_params, see_period=see_period, labels=labels,
-                    lookahead=lookahead,
+                    lookahead=lookahead, action=action,
                 )
                 demos.append(demo)
         print_fn(f"read {rcg.name}: {', '.join(game.team_names)}")
@@ -644,14 +720,26 @@ def imitate_from_logs(
             f"none of the teams {', '.join(map(repr, team_names))} played in the logs; "
             f"the logs' teams: {', '.join(sorted(seen_names))}"
         )
-    policy = config.learner.network.policy()
+    actions = 12 if action == "thesis12" else 2
+    network = dataclasses.replace(config.learner.network, actions=actions)
+    policy = network.policy()
+    start = learner_params.policy
+    if actions != config.learner.network.actions:
+        # A new action head; the encoders, attention and LSTM start from init_from's.
+        first = jax.tree.map(lambda leaf: jnp.asarray(leaf[:, 0]), demos[0].observations)
+        n = first.self_features.shape[0]
+        fresh = policy.init(jax.random.key(seed), policy.initial_carry((n,)), first,
+                            jnp.ones(n, bool))
+        start = jax.tree.map(
+            lambda new, old: old if np.shape(old) == np.shape(new) else new, fresh, start
+        )
 
     def progress(step: int, loss: float) -> None:
         if step % 100 == 0:
             print_fn(f"step {step}: loss {loss:.3f}")
 
     policy_params, result = imitate(
-        policy, learner_params.policy, demos, steps=steps, batch_size=batch_size,
+        policy, start, demos, steps=steps, batch_size=batch_size,
         sequence_length=sequence_length, learning_rate=learning_rate, seed=seed,
         max_minutes=max_minutes, progress=progress,
     )
@@ -660,6 +748,7 @@ def imitate_from_logs(
         "env.field_width": float(env_params.field_width),
         "env.goal_width": float(env_params.goal_width),
     }
+    overrides["network.actions"] = actions
     if players_per_team != config.learner.players_per_team:
         # A valid config for the new team size: one minibatch of whole games.
         overrides["env.players_per_team"] = players_per_team

@@ -48,13 +48,21 @@ class _Player:
     name: str
     act: Callable[[Any, Observation, jax.Array], tuple[Any, Any]]
     init_carry: Callable[[int], Any]
+    actions: int = 2  # 2: (move, rot) by the action mode; 12: the thesis's action, always
 
 
 def load_robocup_team(
-    spec: str, action: str, *, deterministic: bool = True, turn_scale: float = 180.0
+    spec: str,
+    action: str,
+    *,
+    deterministic: bool = True,
+    turn_scale: float = 180.0,
+    any_action: bool = False,
 ) -> _Player:
     """A team for RoboCupEnv from a spec (see the module docstring). ``turn_scale``: the
-    env's RoboCupConfig.turn_scale, which the naive team aims its turns by."""
+    env's RoboCupConfig.turn_scale, which the naive team aims its turns by. A checkpoint must
+    give the action mode's values unless ``any_action`` (``RoboCupTeam`` maps either kind;
+    ``_Player.actions`` says which)."""
     if spec == "naive":
         naive = RoboCupNaiveTeam(action=action, turn_scale=turn_scale)
         return _Player("naive", lambda c, o, k: naive.act(None, c, o, k), naive.init_carry)
@@ -62,18 +70,20 @@ def load_robocup_team(
         size = 2 if action == "sim" else 12
         rand = RandomRoboCupTeam(action_size=size)
         return _Player("random", lambda c, o, k: rand.act(None, c, o, k), rand.init_carry)
-    if action != "sim":
-        raise ValueError(
-            f"team {spec!r} is a checkpoint: it plays (move, rot) actions, so the action mode "
-            f"must be 'sim', not {action!r}"
-        )
     from elevens.runs.teams import load_team
 
     team = load_team(spec, deterministic=deterministic)
+    if action != {2: "sim", 12: "thesis12"}[team.actions] and not any_action:
+        plays = "(move, rot) actions" if team.actions == 2 else "the thesis's 12-value action"
+        wanted = "sim" if team.actions == 2 else "thesis12"
+        raise ValueError(
+            f"team {spec!r} is a checkpoint: it plays {plays}, so the action mode must be "
+            f"{wanted!r}, not {action!r}"
+        )
     policy = team.policy
     act = jax.jit(lambda params, carry, obs, key: policy.act(params, carry, obs, key))
     return _Player(
-        team.name, lambda c, o, k: act(team.params, c, o, k), policy.init_carry
+        team.name, lambda c, o, k: act(team.params, c, o, k), policy.init_carry, team.actions
     )
 
 

@@ -27,9 +27,11 @@ import jax
 import numpy as np
 
 from elevens.env.state import Observation
+from elevens.robocup.actions import ActionScaling, actions_to_commands
 from elevens.robocup.client import Cycle, RoboCupClient, ServerDied
 from elevens.robocup.env import (
     RoboCupConfig,
+    _command_summary,
     kickable_distance,
     robocup_env_params,
     sim_actions_to_commands,
@@ -115,7 +117,7 @@ class RoboCupTeam:
         self.rules = rules
         self.params = robocup_env_params(self.config)
         self.player = load_robocup_team(
-            spec, "sim", deterministic=deterministic, turn_scale=turn_scale
+            spec, "sim", deterministic=deterministic, turn_scale=turn_scale, any_action=True
         )
         self.key = jax.random.key(seed)
         self.warm_up_s = 0.0
@@ -135,6 +137,21 @@ class RoboCupTeam:
         actions[side] = last
         obs = memory.observation(step % _DEFAULT_EPISODE, actions, start)
         return jax.tree.map(lambda leaf: leaf[side], obs)
+
+    def _commands(
+        self, actions: Any, ball_distance: np.ndarray, kickable: float, scaling: ActionScaling
+    ) -> tuple[np.ndarray, list[Command | None]]:
+        """The policy's actions -> (the (move, rot) its observations carry next, one command
+        per player): the "sim" rule for (move, rot), the thesis's table 4.1 for 12 values."""
+        values = np.clip(np.asarray(actions, np.float32), -1.0, 1.0)
+        if self.player.actions == 12:
+            sent = actions_to_commands(values, scaling)
+            last = np.array([_command_summary(c, scaling) for c in sent], np.float32)
+            return last, list(sent)
+        sent = sim_actions_to_commands(
+            values, ball_distance, kickable=kickable, turn_scale=self.config.turn_scale
+        )
+        return values, list(sent)
 
     def warm_up(self) -> float:
         """Run the policy (and with it every jitted function) once on an empty observation;
@@ -199,6 +216,9 @@ class RoboCupTeam:
         memory.reset(positions, np.zeros((2, n)))
         params = client.server_params
         kickable = kickable_distance(params if isinstance(params, ServerParams) else None)
+        scaling = ActionScaling.from_server_params(
+            params if isinstance(params, ServerParams) else None
+        )
         carry = self.player.init_carry(n)
         key = self.key
         last = np.zeros((n, 2), np.float32)
@@ -229,15 +249,8 @@ class RoboCupTeam:
                 key, act_key = jax.random.split(key)
                 obs = self._observation(memory, side, step, last)
                 carry, actions = self.player.act(carry, obs, act_key)
-                last = np.clip(np.asarray(actions, np.float32), -1.0, 1.0)
-                commands: list[Command | None] = list(
-                    sim_actions_to_commands(
-                        last,
-                        memory.ball_distance[side],
-                        kickable=kickable,
-                        turn_scale=self.config.turn_scale,
-                    )
-                )
+                last, commands = self._commands(actions, memory.ball_distance[side], kickable,
+                                                scaling)
                 what = "policy"
                 if self.rules:
                     view = _team_view(memory, side)

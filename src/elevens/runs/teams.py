@@ -300,6 +300,7 @@ def load_team(spec: str | TeamSpec, *, deterministic: bool | None = None) -> Tea
         size_dependent=not config.learner.network.use_attention,
         spec=parsed.text,
         field=(game.field_length, game.field_width, game.goal_width),
+        actions=config.learner.network.actions,
     )
 
 

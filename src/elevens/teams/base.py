@@ -58,8 +58,19 @@ class Team:
     """(field_length, field_width, goal_width) the checkpoint trained on; None for the
     handcrafted teams, which play on any field they are told."""
 
+    actions: int = 2
+    """Action values its policy gives: 2, the simulator's (move, rot); 12, the thesis's
+    RoboCup action (it plays rcssserver only)."""
+
     def check_size(self, players_per_team: int) -> None:
-        """Raise ``ValueError`` if the params cannot play ``players_per_team`` a side."""
+        """Raise ``ValueError`` if the params cannot play ``players_per_team`` a side in the
+        simulator."""
+        if self.actions != 2:
+            raise ValueError(
+                f"team {self.name!r} ({self.spec}) gives the thesis's {self.actions}-value "
+                "RoboCup action, not the simulator's (move, rot): it plays rcssserver only "
+                "(elevens robocup match)"
+            )
         if self.size_dependent and self.trained_players != players_per_team:
             raise ValueError(
                 f"team {self.name!r} ({self.spec}) is a feedforward network (no attention) "

@@ -108,6 +108,12 @@ class EnvConfig:
         """The main game as 'NvN' (the form of ``mix``)."""
         return f"{self.players_per_team}v{self.players_per_team}"
 
+NETWORK_ACTIONS = (2, 12)
+# Fields added after config version 2 whose default is all that older versions knew: filled
+# without a warning.
+_SILENT_DEFAULTS = ("learner.network.actions",)
+
+
 @dataclasses.dataclass(frozen=True)
 class NetworkConfig:
     """The policy and critic networks (``elevens.nets``); defaults are the thesis network."""
@@ -124,6 +130,10 @@ class NetworkConfig:
     """LSTM units per layer (table 6.1: 32)."""
     lstm_layers: int = 2
     """LSTM layers in out_r (table 6.2: 2)."""
+    actions: int = 2
+    """Policy outputs: 2, the simulator's (move, rot), what every simulator game and training
+    run takes; 12, the thesis's RoboCup action (table 4.1), for teams that play rcssserver
+    only (``elevens robocup imitate --action thesis12``)."""
 
     def policy(self) -> Any:
         """The ``AttentionPolicy`` module of this config."""
@@ -136,6 +146,7 @@ class NetworkConfig:
             lstm_layers=self.lstm_layers,
             use_attention=self.use_attention,
             use_lstm=self.use_lstm,
+            num_actions=self.actions,
         )
 
     def critic(self) -> Any:
@@ -333,6 +344,7 @@ class TrainConfig:
         fields = {key: value for key, value in data.items() if key != "config_version"}
         filled: list[str] | None = [] if fill_missing else None
         config = _from_dict(cls, fields, "", filled)
+        filled = [name for name in filled or [] if name not in _SILENT_DEFAULTS]
         if filled:
             warnings.warn(
                 "the config was saved by an older version of elevens; these fields are not in "
@@ -854,6 +866,11 @@ def mix_schedule(learner: LearnerConfig, chunks: int) -> list[str]:
 def _validate_network(network: NetworkConfig) -> None:
     for name in ("features", "num_heads", "lstm_features", "lstm_layers"):
         _int_at_least(f"network.{name}", getattr(network, name), 1)
+    _require(
+        network.actions in NETWORK_ACTIONS,
+        f"network.actions={network.actions!r} is invalid: it must be 2 (move, rot) or 12 (the "
+        "thesis's RoboCup action)",
+    )
     _require(
         network.features % network.num_heads == 0,
         f"network.num_heads={network.num_heads} is invalid: it must divide "

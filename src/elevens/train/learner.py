@@ -435,6 +435,11 @@ def make_learner(
     resume, a longer run, another run directory) reuses the compiled chunk.
     """
     validate_learner(config)
+    if config.network.actions != 2:
+        raise ValueError(
+            f"network.actions={config.network.actions}: the simulator and PPO take the 2-value "
+            "(move, rot) action; a 12-value policy plays rcssserver only (elevens robocup match)"
+        )
     if load_team is None and len(opponent_mix(config)) > 1:
         raise ValueError(
             f"opponent.mix={config.opponent.mix!r} names fixed teams: pass load_team "

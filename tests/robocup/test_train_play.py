@@ -303,8 +303,8 @@ def test_play_handcrafted_teams_on_a_stand_in_env() -> None:
     )
     assert len(results) == 1 and results[0].steps == 20
     assert lines[0].startswith("episode 0: naive")
-    with pytest.raises(ValueError, match="must be 'sim'"):
-        load_robocup_team("runs/some-checkpoint", "thesis12")
+    with pytest.raises(ValueError, match="plays \\(move, rot\\) actions.*must be 'sim'"):
+        load_robocup_team("elevens-2v2", "thesis12")
     with pytest.raises(ValueError, match="episodes=0"):
         play_robocup("naive", "random", episodes=0, env=_Episode(env, 5))
 

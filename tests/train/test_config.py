@@ -425,3 +425,22 @@ def test_a_mixed_run_shares_its_chunks_between_sizes_by_a_fixed_schedule() -> No
     assert two.ppo == learner.ppo and two.validate() is two
     # Without a mix, every chunk plays the main game.
     assert set(mix_schedule(make_config("2v2").learner, 5)) == {"2v2"}
+
+
+def test_the_action_count_is_2_or_12_and_training_takes_2() -> None:
+    from elevens.train.config import make_config
+    from elevens.train.learner import make_learner
+
+    with pytest.raises(ValueError, match=r"network.actions=5 is invalid: it must be 2 .* or 12"):
+        make_config("quickstart", **{"network.actions": 5})
+    twelve = make_config("quickstart", **{"network.actions": 12})
+    with pytest.raises(ValueError, match="network.actions=12: the simulator and PPO take"):
+        make_learner(twelve.learner)
+    # A config saved before the field existed reads as 2, without a warning about it.
+    saved = make_config("quickstart").to_dict()
+    del saved["learner"]["network"]["actions"]
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert TrainConfig.from_saved(saved, "x.json").learner.network.actions == 2

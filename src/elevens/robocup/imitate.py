@@ -501,6 +501,7 @@ class ImitationResult:
     # action gives the demonstrator's kind of command (dash or kick, turn, nothing; nan without
     # any held-out sequence)
     held_out_move_error: float  # mean |move - label| of the deterministic action, held out
+    # (12-value actions: the mean |error| of the label command's parameters)
     wall_s: float
 
 

@@ -10,9 +10,10 @@ velocities and bodies) and a ``.rcl`` (every command each player sent). From the
   points set to the kick-off formation, as ``RoboCupTeam`` builds them);
 * **labels**: each player's body command in the "sim" action space (``robocup.env``):
   ``(dash p d)`` -> move ``p / 100 * cos d``; ``(turn m)`` -> rot ``m / 180``; ``(kick p d)`` ->
-  move ``p / 100`` (the sim rule kicks when move > 0 with the ball kickable). Tackles, catches,
-  moves and every cycle that is not ``play_on`` are left out of the loss, as the set-piece and
-  goalie routines play them in a match.
+  move ``p / 100`` (the sim rule kicks when move > 0 with the ball kickable); or, with
+  ``action="thesis12"``, the thesis's 12-value action of the command (:func:`thesis12_label`,
+  tackles included). Catches, moves and every cycle that is not ``play_on`` are left out of the
+  loss, as the set-piece and goalie routines play them in a match.
 
 :func:`imitate` fits an elevens policy's deterministic action (``tanh`` of its Gaussian's
 mean) to these labels with :func:`command_loss`, on sequences of consecutive cycles through the
@@ -48,10 +49,17 @@ __all__ = [
     "Demonstrations",
     "GameLog",
     "ImitationResult",
+    "command_kind",
+    "command_loss",
     "demonstrations",
     "imitate",
+    "imitate_from_logs",
+    "intent_labels",
     "label_of_command",
+    "log_pairs",
     "read_game_log",
+    "thesis12_label",
+    "thesis12_loss",
 ]
 
 log = logging.getLogger(__name__)

@@ -233,10 +233,14 @@ def test_the_goalie_turns_to_the_ball_first_and_goes_for_it_in_its_area() -> Non
 
 def test_the_goalie_guard_leaves_set_pieces_and_a_lost_ball_to_the_others() -> None:
     view = _ball_at((-10.0, 30.0))
-    for mode in ("corner_kick_l", "before_kick_off", "time_over"):
+    for mode in ("before_kick_off", "goal_r", "time_over"):
         assert guard_goal(POLICY, view, mode, 0) == (POLICY, False)
-    # In the opponents' set pieces it guards too, but does not go for a ball in its area.
+    # In set pieces it guards too (the policy would chase the ball: a naive goalie left its
+    # goal at our kick-off), unless a routine gave it its command (it takes the set piece).
     assert guard_goal(POLICY, view, "corner_kick_r", 0)[1]
+    assert guard_goal(POLICY, view, "kick_off_l", 0)[1]
+    assert guard_goal(POLICY, view, "goal_kick_l", 0, goalie_busy=True) == (POLICY, False)
+    # In the opponents' set pieces it does not go for a ball in its area.
     in_area = _ball_at((-45.0, 6.0), heading=math.atan2(6.0, 6.0))
     commands, _ = guard_goal(POLICY, in_area, "free_kick_r", 0)
     assert isinstance(commands[0], Dash) and commands[0].direction != pytest.approx(0.0)

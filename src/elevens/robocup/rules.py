@@ -13,10 +13,11 @@ some of them with short scripted routines, then hands back to the policy when pl
   the player nearest the ball (the goalie only when it holds the ball after a catch, or for a
   goal kick) turns to it,
   runs to it and kicks: at the goal from within ``SHOOT_RANGE`` of it, a pass back to a
-  midfield slot at kick-off, else a long ball up the wing. Everybody else plays the policy.
+  midfield slot at kick-off, else a long ball up the wing. Everybody else plays the policy
+  (but the goalie, which guards its goal).
 * **the goalie catches** in play_on: the ball fresh in its latest see, within the catchable
   area (1.2 m along the catch direction) and the goalie inside its penalty area: ``(catch)``.
-* **the goalie guards the goal** in play and in the opponents' set pieces (:func:`guard_goal`):
+* **the goalie guards the goal** in play and in set pieces it does not take (:func:`guard_goal`):
   it faces the ball and keeps to the line from the goal's centre to the ball, closer to the
   ball as it comes; a ball inside the penalty area it goes for, so that it can catch it.
 * **no second touch** (:func:`no_second_touch`): the player that took a set piece does not kick
@@ -294,6 +295,7 @@ def apply_rules(
     return out, "policy"
 
 
+KINDS_GUARDED = ("play", "theirs", "ours")  # mode kinds in which the goalie guards its goal
 GUARD_DEPTH = (1.5, 8.0)
 """How far (metres) the goalie stands from the centre of its goal line: the nearer end when the
 ball is far, up to the further one as the ball comes (a quarter of the ball's distance)."""
@@ -315,12 +317,14 @@ def guard_goal(
     side: int,
     *,
     goalie: int | None = 0,
+    goalie_busy: bool = False,
 ) -> tuple[list[Command | None], bool]:
-    """The goalie's routine in play and in the opponents' set pieces (module docstring):
-    ``commands`` with the goalie's replaced, and whether it was. Left to the policy when nobody
-    sees the ball; our set pieces and moves are :func:`apply_rules`'."""
+    """The goalie's routine in play and in every set piece (module docstring): ``commands``
+    with the goalie's replaced, and whether it was. Left alone when nobody sees the ball, when
+    ``goalie_busy`` (a routine of :func:`apply_rules` gave the goalie its command: it takes
+    the set piece or catches), and in the moves before a kick-off."""
     out = list(commands)
-    if goalie is None or mode_kind(play_mode, side) not in ("play", "theirs"):
+    if goalie is None or goalie_busy or mode_kind(play_mode, side) not in KINDS_GUARDED:
         return out, False
     ball = _ball_estimate(view)
     if ball is None:

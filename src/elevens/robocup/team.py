@@ -265,8 +265,9 @@ class RoboCupTeam:
                     )
                     if what == "set_piece":
                         _note_set_piece_kick(policy_commands, commands, touch, counts["cycles"])
+                    busy = commands[0] is not policy_commands[0]  # a routine's command
+                    commands, _ = guard_goal(commands, view, mode, side, goalie_busy=busy)
                     if what == "policy":
-                        commands, _ = guard_goal(commands, view, mode, side)
                         commands = no_second_touch(
                             commands, view, touch, counts["cycles"], kickable=kickable
                         )

@@ -41,7 +41,7 @@ import optax
 
 from elevens.env import observe as observe_lib
 from elevens.env.params import EnvParams
-from elevens.env.state import SELF_FEATURES, Observation, State
+from elevens.env.state import ENTITY_FEATURES, SELF_FEATURES, Observation, State
 from elevens.robocup.observe import PLAYER_DECAY
 from elevens.robocup.rules import kick_off_positions
 
@@ -412,11 +412,10 @@ def _observations(
 ) -> Observation:
     """Observations [n, T] of ``side``'s players (see the module docstring)."""
     states = _world_states(game, side, params, previous)
-    observe = jax.jit(jax.vmap(lambda state: observe_lib.observe(state, params)))
     chunks = []
     for start in range(0, len(game.time), 1024):
         part = jax.tree.map(lambda leaf, s=start: leaf[s : s + 1024], states)
-        chunks.append(jax.device_get(observe(part)))
+        chunks.append(jax.device_get(_observe_batch(part, params)))
     obs = jax.tree.map(lambda *leaves: np.concatenate(leaves), *chunks)
     obs = jax.tree.map(lambda leaf: np.swapaxes(leaf[:, side], 0, 1), obs)  # [n, T, ...]
     entities = obs.entities.copy()
@@ -427,7 +426,11 @@ def _observations(
     return Observation(self_features=features, entities=entities, entity_mask=obs.entity_mask)
 
 
-ENTITY_LAST_ACTIONS = slice(7, 9)  # last_move, last_rot in ENTITY_FEATURES
+# One compiled batch observation for every match and team (params are static and hashable).
+_observe_batch = jax.jit(jax.vmap(observe_lib.observe, in_axes=(0, None)), static_argnums=1)
+ENTITY_LAST_ACTIONS = slice(
+    ENTITY_FEATURES.index("last_move"), ENTITY_FEATURES.index("last_rot") + 1
+)
 _FRESH = [SELF_FEATURES.index(name) for name in
           ("time_left", "last_move", "last_rot", "start_x", "start_y")]
 
@@ -756,8 +759,8 @@ def imitate_from_logs(
         "env.field_length": float(env_params.field_length),
         "env.field_width": float(env_params.field_width),
         "env.goal_width": float(env_params.goal_width),
+        "network.actions": actions,
     }
-    overrides["network.actions"] = actions
     if players_per_team != config.learner.players_per_team:
         # A valid config for the new team size: one minibatch of whole games.
         overrides["env.players_per_team"] = players_per_team

@@ -73,9 +73,9 @@ def load_robocup_team(
     from elevens.runs.teams import load_team
 
     team = load_team(spec, deterministic=deterministic)
-    if action != {2: "sim", 12: "thesis12"}[team.actions] and not any_action:
+    wanted = "sim" if team.actions == 2 else "thesis12"
+    if action != wanted and not any_action:
         plays = "(move, rot) actions" if team.actions == 2 else "the thesis's 12-value action"
-        wanted = "sim" if team.actions == 2 else "thesis12"
         raise ValueError(
             f"team {spec!r} is a checkpoint: it plays {plays}, so the action mode must be "
             f"{wanted!r}, not {action!r}"

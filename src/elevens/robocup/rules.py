@@ -324,7 +324,8 @@ def guard_goal(
     ``goalie_busy`` (a routine of :func:`apply_rules` gave the goalie its command: it takes
     the set piece or catches), and in the moves before a kick-off."""
     out = list(commands)
-    if goalie is None or goalie_busy or mode_kind(play_mode, side) not in KINDS_GUARDED:
+    kind = mode_kind(play_mode, side)
+    if goalie is None or goalie_busy or kind not in KINDS_GUARDED:
         return out, False
     ball = _ball_estimate(view)
     if ball is None:
@@ -334,7 +335,7 @@ def guard_goal(
     bearing = math.atan2(to_ball[1], to_ball[0]) - heading
     bearing = math.atan2(math.sin(bearing), math.cos(bearing))
     goal = np.array([-_HALF[0], 0.0])
-    if _in_own_penalty_area(ball) and mode_kind(play_mode, side) == "play":
+    if _in_own_penalty_area(ball) and kind == "play":
         target = ball  # go for it: the catch rule takes it in reach
     else:
         from_goal = ball - goal

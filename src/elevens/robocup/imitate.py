@@ -789,8 +789,8 @@ def _model_card(
         f"{result.last_loss:.3f} (last 5%).",
         f"- Held out: the demonstrator's kind of command (dash or kick, turn, nothing) in "
         f"{result.held_out_agreement:.1%} of labelled cycles.",
-        f"- Held-out mean |move - label| of the deterministic action: "
-        f"{result.held_out_move_error:.3f}.",
+        f"- Held-out mean |move - label| of the deterministic action (12-value actions: "
+        f"|parameter - label| of the label's command): {result.held_out_move_error:.3f}.",
         "- Made by `elevens robocup imitate` (elevens.robocup.imitate).",
         "",
     ]

@@ -296,8 +296,9 @@ def test_imitation_learns_a_rule_it_is_shown():
     assert result.last_loss < 0.1 * result.first_loss
     # Held-out sequences: the deterministic move has the label's sign and is close to it.
     assert result.held_out_move_error < 0.2 and result.held_out_agreement > 0.95
-    untrained = imitate(policy, params, demos, steps=1, learning_rate=1e-9, held_out=0.25)[1]
-    assert result.held_out_move_error < 0.5 * untrained.held_out_move_error
+    # The same held-out figures of the starting networks: the fit, not the data, made them.
+    assert result.held_out_move_error < 0.5 * result.held_out_move_error_before
+    assert result.held_out_agreement_before < 0.9
 
 
 def test_the_last_action_can_be_hidden_from_the_policy():
@@ -415,8 +416,10 @@ def test_imitation_of_thesis12_commands_chooses_between_them():
     policy = AttentionPolicy(features=32, lstm_features=16, num_actions=12)
     obs0 = jax.tree.map(lambda leaf: jnp.asarray(leaf[:, 0]), demos[0].observations)
     params = policy.init(jax.random.key(0), policy.initial_carry((3,)), obs0, jnp.ones(3, bool))
+    # 400 steps passed or stalled at a loss of 2 by the initial key (3 keys of 4 stalled);
+    # 1000 steps learn it from every key tried.
     _, result = imitate(
-        policy, params, demos, steps=400, batch_size=8, sequence_length=8, learning_rate=3e-3,
+        policy, params, demos, steps=1000, batch_size=8, sequence_length=8, learning_rate=3e-3,
         held_out=0.25,
     )
     assert result.held_out_agreement > 0.95 and result.held_out_move_error < 0.1

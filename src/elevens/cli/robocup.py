@@ -353,7 +353,9 @@ def imitate(args: RoboCupImitateArgs) -> None:
             f"wrote {args.out}: {result.steps} steps, loss "
             f"{result.first_loss:.3f} -> {result.last_loss:.3f}; held out: the demonstrator's "
             f"command in {result.held_out_agreement:.1%} of cycles (mean |move error| "
-            f"{result.held_out_move_error:.3f}), "
+            f"{result.held_out_move_error:.3f}; before the first step "
+            f"{result.held_out_agreement_before:.1%} and "
+            f"{result.held_out_move_error_before:.3f}), "
             f"{result.wall_s:.0f} s"
         )
 

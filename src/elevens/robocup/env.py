@@ -83,6 +83,7 @@ __all__ = [
     "VIEW_WIDTHS",
     "RoboCupConfig",
     "RoboCupEnv",
+    "command_summary",
     "robocup_env_params",
     "sim_actions_to_commands",
 ]
@@ -250,7 +251,7 @@ def sim_actions_to_commands(
     return commands
 
 
-def _command_summary(command: Command, s: ActionScaling) -> tuple[float, float]:
+def command_summary(command: Command, s: ActionScaling) -> tuple[float, float]:
     """A thesis12 command as the 2-value (move, rot) the observations carry."""
     if isinstance(command, Dash):
         direction = math.radians(command.direction or 0.0)
@@ -545,7 +546,7 @@ class RoboCupEnv:
             )
             return commands, applied
         commands = actions_to_commands(arr, self._scaling)
-        summary = [_command_summary(c, self._scaling) for c in commands]
+        summary = [command_summary(c, self._scaling) for c in commands]
         applied = np.asarray(summary, np.float32).reshape(2, self.players_per_team, 2)
         return commands, applied
 

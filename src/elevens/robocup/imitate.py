@@ -514,6 +514,8 @@ class ImitationResult:
     held_out_move_error: float  # mean |move - label| of the deterministic action, held out
     # (12-value actions: the mean |error| of the label command's parameters)
     wall_s: float
+    held_out_agreement_before: float = math.nan  # the two held-out figures of the starting
+    held_out_move_error_before: float = math.nan  # networks, before the first step
 
 
 def _sequences(
@@ -636,6 +638,17 @@ def imitate(
             jnp.asarray(reset[rows]),
         )
 
+    def held_out_figures(p: Any) -> tuple[float, float]:
+        """(agreement, move error) over the held-out sequences, (nan, nan) without any."""
+        if not len(test):
+            return math.nan, math.nan
+        totals = np.zeros(2)
+        for part in np.array_split(test, max(1, len(test) // 256)):
+            totals += np.asarray(evaluate(p, *batch(part))[1], np.float64) * len(part)
+        agreement, error = (totals / len(test)).tolist()
+        return agreement, error
+
+    agreement_before, error_before = held_out_figures(params)
     history = []
     done = 0
     for step in range(steps):
@@ -647,13 +660,7 @@ def imitate(
             progress(done, history[-1])
         if max_minutes is not None and time.perf_counter() - began > 60.0 * max_minutes:
             break
-    held_agreement, held_error = math.nan, math.nan
-    if len(test):
-        totals = np.zeros(2)
-        parts = np.array_split(test, max(1, len(test) // 256))
-        for part in parts:
-            totals += np.asarray(evaluate(params, *batch(part))[1], np.float64) * len(part)
-        held_agreement, held_error = (totals / len(test)).tolist()
+    held_agreement, held_error = held_out_figures(params)
     window = max(1, done // 20)
     result = ImitationResult(
         steps=done,
@@ -663,6 +670,8 @@ def imitate(
         held_out_agreement=held_agreement,
         held_out_move_error=held_error,
         wall_s=time.perf_counter() - began,
+        held_out_agreement_before=agreement_before,
+        held_out_move_error_before=error_before,
     )
     return params, result
 
@@ -788,9 +797,11 @@ def _model_card(
         f"- Training loss: {result.first_loss:.3f} (first 5% of steps) -> "
         f"{result.last_loss:.3f} (last 5%).",
         f"- Held out: the demonstrator's kind of command (dash or kick, turn, nothing) in "
-        f"{result.held_out_agreement:.1%} of labelled cycles.",
+        f"{result.held_out_agreement:.1%} of labelled cycles "
+        f"({result.held_out_agreement_before:.1%} before the first step).",
         f"- Held-out mean |move - label| of the deterministic action (12-value actions: "
-        f"|parameter - label| of the label's command): {result.held_out_move_error:.3f}.",
+        f"|parameter - label| of the label's command): {result.held_out_move_error:.3f} "
+        f"({result.held_out_move_error_before:.3f} before the first step).",
         "- Made by `elevens robocup imitate` (elevens.robocup.imitate).",
         "",
     ]

@@ -31,7 +31,7 @@ from elevens.robocup.actions import ActionScaling, actions_to_commands
 from elevens.robocup.client import Cycle, RoboCupClient, ServerDied
 from elevens.robocup.env import (
     RoboCupConfig,
-    _command_summary,
+    command_summary,
     kickable_distance,
     robocup_env_params,
     sim_actions_to_commands,
@@ -146,7 +146,7 @@ class RoboCupTeam:
         values = np.clip(np.asarray(actions, np.float32), -1.0, 1.0)
         if self.player.actions == 12:
             sent = actions_to_commands(values, scaling)
-            last = np.array([_command_summary(c, scaling) for c in sent], np.float32)
+            last = np.array([command_summary(c, scaling) for c in sent], np.float32)
             return last, list(sent)
         sent = sim_actions_to_commands(
             values, ball_distance, kickable=kickable, turn_scale=self.config.turn_scale

@@ -34,7 +34,7 @@ import typing
 import warnings
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
 import tyro
 
@@ -51,7 +51,6 @@ from elevens.train.opponents import (
 from elevens.train.ppo import PPOHyperparams
 from elevens.train.shaping import SHAPING_THRESHOLD, SHAPING_WINDOW
 
-OpponentKind = Literal["polyak", "self", "league"]
 EVAL_TEAMS: tuple[str, ...] = ("random", "naive", "teamwork")
 """The handcrafted teams the learner can be evaluated against (``elevens.eval.play``)."""
 CONFIG_VERSION = 2

@@ -1,0 +1,218 @@
+"""Scripted probe teams for rcssserver: what changes the score against another team?
+
+A diagnostic, not a team to ship (docs/results/robocup.md, session 17). Each probe is the RoboCup
+naive team (`elevens.robocup.naive`) with one behaviour changed, played with the same set-piece,
+goalie and stamina rules as every elevens team. It runs as an external team command:
+
+    elevens robocup match --team0-cmd "python scripts/robocup_probe_team.py PROBE \
+        --host localhost --port {port} --team-name {team} --players 11" --team0-name PROBE \
+        --team1-cmd "$ELEVENS_HELIOS_START -p {port} -P {coach_port} -t {team}" \
+        --team1-name HELIOS_base --matches 2 --log-dir DIR
+
+Probes:
+  naive12    the naive team with the thesis's 12-value action: it kicks at once in any direction
+             instead of turning to face the goal first
+  clear12    naive12, kicking at the far corner of the opponents' half instead of the goal
+  screen     the 2 players nearest the ball chase it; the other 8 hold two lines between the
+             ball and the own goal
+  bus        the 8 players not within 4 m of the ball hold two rows across the own penalty area
+  intercept  chasers run to where they can meet the rolling ball, not to where it is
+  longko     naive; the kick-off goes long to the opponents' wing instead of back to midfield
+  tackle     naive; a player with the ball 0-1.7 m ahead (and out of kicking reach) tackles
+             it towards the opponent goal
+
+Everything after PROBE goes to ``elevens robocup team``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import sys
+
+import numpy as np
+
+import elevens.robocup.play as play
+import elevens.robocup.rules as rules
+import elevens.robocup.team as team
+from elevens.robocup.actions import ActionIndex
+from elevens.robocup.naive import _COS, _SIN, _X, _Y, NaiveMemory, RoboCupNaiveTeam, _wrap
+from elevens.robocup.protocol import Kick, Tackle
+
+PROBES = ("naive12", "clear12", "screen", "bus", "intercept", "longko", "tackle")
+OWN_GOAL = np.array([-52.5, 0.0])
+
+
+def _pose(team: RoboCupNaiveTeam, obs) -> tuple[np.ndarray, np.ndarray]:
+    f = np.asarray(obs.self_features, np.float64)
+    position = f[:, [_X, _Y]] * np.array([team.half_length, team.half_width])
+    return position, np.arctan2(f[:, _SIN], f[:, _COS])
+
+
+def _turn_or_dash(team: RoboCupNaiveTeam, angle: float, distance: float) -> tuple[float, float]:
+    """A "sim" action heading for a point ``angle`` (radians, + left) and ``distance`` away."""
+    if abs(angle) > math.radians(20.0):
+        return 0.0, float(np.clip(-math.degrees(angle) / team.turn_scale, -1.0, 1.0))
+    return min(1.0, distance / 5.0 + 0.3), 0.0
+
+
+class Clear(RoboCupNaiveTeam):
+    def act(self, params, carry, obs, key=None):
+        carry, out = super().act(params, carry, obs, key)
+        position, heading = _pose(self, obs)
+        for i in np.flatnonzero(out[:, ActionIndex.KICK_SCORE] > 0.5):
+            corner = np.array([52.5, 34.0 if position[i, 1] >= 0 else -34.0])
+            offset = corner - position[i]
+            angle = _wrap(math.atan2(offset[1], offset[0]) - heading[i])
+            out[i, ActionIndex.KICK_DIR] = np.clip(-math.degrees(angle) / 180.0, -1.0, 1.0)
+        return carry, out
+
+
+@dataclasses.dataclass(frozen=True)
+class Block(RoboCupNaiveTeam):
+    """screen (``bus`` False) or bus (True): naive chasers, the rest hold positions."""
+
+    bus: bool = False
+    chasers: int = 2
+
+    def act(self, params, carry, obs, key=None):
+        carry, out = super().act(params, carry, obs, key)
+        position, heading = _pose(self, obs)
+        n = len(position)
+        ball = carry.ball.mean(axis=0)
+        distance = np.hypot(*(position - ball).T)
+        distance[0] = np.inf  # the goalie has its own rule
+        if self.bus:
+            chasing = {i for i in range(1, n) if distance[i] < 4.0}
+        else:
+            chasing = set(np.argsort(distance)[: self.chasers].tolist())
+        holding = [i for i in range(1, n) if i not in chasing]
+        targets = self._targets(ball, len(holding))
+        free = list(range(len(targets)))
+        for i in sorted(holding, key=lambda i: position[i, 0]):
+            j = min(free, key=lambda j: np.hypot(*(position[i] - targets[j])))
+            free.remove(j)
+            offset = targets[j] - position[i]
+            if np.hypot(*offset) < 1.5:  # there: face the ball
+                to_ball = ball - position[i]
+                angle = _wrap(math.atan2(to_ball[1], to_ball[0]) - heading[i])
+                out[i] = _turn_or_dash(self, angle, 0.0) if abs(angle) > 0.5 else (0.0, 0.0)
+            else:
+                angle = _wrap(math.atan2(offset[1], offset[0]) - heading[i])
+                out[i] = _turn_or_dash(self, angle, float(np.hypot(*offset)))
+        return carry, out
+
+    def _targets(self, ball: np.ndarray, m: int) -> list[np.ndarray]:
+        to_goal = OWN_GOAL - ball
+        length = float(np.hypot(*to_goal)) + 1e-9
+        along, across = to_goal / length, np.array([-to_goal[1], to_goal[0]]) / length
+        targets = []
+        for j in range(m):
+            row, k = j % 2, j // 2
+            if self.bus:
+                y = (k - (m // 2 - 1) / 2) * 5.0 + 2.5 * row + np.clip(0.3 * ball[1], -8, 8)
+                target = np.array([-48.0 + 5.0 * row, y])
+            elif j < m // 2:
+                target = ball + along * min(6.0, 0.3 * length) + across * (j - (m // 2 - 1) / 2) * 8
+            else:
+                k = j - m // 2
+                lateral = (k - (m - m // 2 - 1) / 2) * 10.0
+                target = ball + along * (0.5 * length + 4.0) + across * lateral
+            targets.append(np.clip(target, [-50.0, -33.0], [52.5, 33.0]))
+        return targets
+
+
+class Intercept(RoboCupNaiveTeam):
+    def act(self, params, carry, obs, key=None):
+        carry, out = super().act(params, carry, obs, key)
+        position, heading = _pose(self, obs)
+        turned = carry.turned.copy()
+        for i in range(len(out)):
+            move, rot = out[i]
+            near = np.hypot(*(carry.ball[i] - position[i])) <= self.kickable + 0.3
+            if carry.age[i] > self.memory_steps or near:
+                continue
+            # The ball's course (decaying by ball_decay a cycle); meet it where a player at
+            # 0.85 m a cycle gets first.
+            ball, velocity = carry.ball[i].copy(), carry.ball_velocity[i].copy()
+            for cycles in range(1, 40):
+                ball, velocity = ball + velocity, velocity * self.ball_decay
+                if np.hypot(*(ball - position[i])) <= 0.85 * cycles + self.kickable:
+                    break
+            target = np.clip(ball, [-52.5, -34.0], [52.5, 34.0])
+            offset = target - position[i]
+            # The naive turn bookkeeping (turns since the last see) minus this cycle's turn.
+            before = turned[i] - (math.radians(-rot * self.turn_scale) if rot else 0.0)
+            angle = _wrap(math.atan2(offset[1], offset[0]) - heading[i] - before)
+            if abs(angle) > self.chase_tolerance:
+                out[i] = (0.0, np.clip(-math.degrees(angle) / self.turn_scale, -1.0, 1.0))
+                limit = math.radians(self.turn_scale)
+                turned[i] = before + float(np.clip(angle, -limit, limit))
+            else:
+                out[i] = (1.0 if np.hypot(*offset) > 2.0 else 0.5, 0.0)
+                turned[i] = before
+        return dataclasses.replace(carry, turned=turned), out
+
+
+def _long_kick_off(original):
+    def kick(view, player, play_mode, n):
+        if play_mode.startswith("kick_off"):
+            wing = np.array([40.0, 24.0 if view.position[player][1] <= 0 else -24.0])
+            return rules._kick_to(view, player, wing, 100.0)
+        return original(view, player, play_mode, n)
+
+    return kick
+
+
+def _tackles(original):
+    def commands_with_tackles(commands, view, touch, cycle, *, kickable):
+        commands = list(original(commands, view, touch, cycle, kickable=kickable))
+        for i in range(1, len(commands)):
+            if isinstance(commands[i], Kick) or not view.ball_seen[i] or view.stale[i] > 0:
+                continue
+            d, bearing = float(view.ball_distance[i]), float(view.ball_bearing[i])
+            ahead, side = d * math.cos(bearing), d * math.sin(bearing)
+            if d > kickable and 0.0 < ahead < 1.7 and abs(side) < 0.9:
+                goal = np.array([52.5, 0.0]) - view.position[i]
+                angle = math.atan2(goal[1], goal[0]) - view.heading[i]
+                commands[i] = Tackle(rules._degrees_clockwise(angle), False)
+        return commands
+
+    return commands_with_tackles
+
+
+def _player(probe: str, turn_scale: float) -> play._Player:
+    teams: dict[str, tuple[RoboCupNaiveTeam, int]] = {
+        "naive12": (RoboCupNaiveTeam(action="thesis12"), 12),
+        "clear12": (Clear(action="thesis12"), 12),
+        "screen": (Block(action="sim", turn_scale=turn_scale), 2),
+        "bus": (Block(action="sim", turn_scale=turn_scale, bus=True), 2),
+        "intercept": (Intercept(action="sim", turn_scale=turn_scale), 2),
+    }
+    naive, actions = teams.get(probe, (RoboCupNaiveTeam(action="sim", turn_scale=turn_scale), 2))
+
+    def act(carry: NaiveMemory, obs, key):
+        return naive.act(None, carry, obs, key)
+
+    return play._Player(probe, act, naive.init_carry, actions)
+
+
+def main() -> None:
+    if len(sys.argv) < 2 or sys.argv[1] not in PROBES:
+        got = sys.argv[1] if len(sys.argv) > 1 else "nothing"
+        sys.exit(f"usage: robocup_probe_team.py PROBE [team options]; PROBE is one of "
+                 f"{', '.join(PROBES)}, not {got}")
+    probe = sys.argv[1]
+    if probe == "longko":
+        rules._set_piece_kick = _long_kick_off(rules._set_piece_kick)
+    if probe == "tackle":
+        team.no_second_touch = _tackles(team.no_second_touch)
+    team.load_robocup_team = lambda spec, action, **kw: _player(probe, kw.get("turn_scale", 180.0))
+    from elevens.cli import main as elevens_main
+
+    sys.argv = ["elevens", "robocup", "team", "--team", "naive", *sys.argv[2:]]
+    elevens_main()
+
+
+if __name__ == "__main__":
+    main()

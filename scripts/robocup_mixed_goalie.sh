@@ -9,7 +9,7 @@
 set -eu
 PORT=$1; COACH_PORT=$2; TEAM=$3
 PYTHON=${PYTHON:-python3}
-HELIOS_DIR=$(dirname "${ELEVENS_HELIOS_START:?set it to helios-base's start.sh}")
+HELIOS_DIR=$(dirname "${ELEVENS_HELIOS_START:?set it to the start.sh of helios-base}")
 "$PYTHON" -m elevens robocup team --team naive --host localhost --port "$PORT" \
   --team-name "$TEAM" --players 1 &
 sleep 4

@@ -451,3 +451,24 @@ def test_a_thesis12_team_plays_the_server_only(tmp_path):
     action[:, 5] = 0.5
     last, commands = player._commands(action, np.full(11, 0.5), 1.085, ActionScaling())
     assert commands == [Dash(50.0, 0.0)] * 11 and np.allclose(last, [0.5, 0.0])
+    # elevens robocup train fine-tunes it (--network.actions 12): the run starts from its
+    # networks.
+    import json
+
+    from elevens.robocup.train import make_robocup_config, train_robocup
+    from elevens.runs.teams import load_learner_params
+    from tests.robocup.test_train_play import KickScoreEnv
+
+    network = json.loads((out / "config.json").read_text())["learner"]["network"]
+    config = make_robocup_config(**{
+        "env.players_per_team": 1, "ppo.minibatch_size": 1, "games_per_iteration": 1,
+        "env.episode_length": 4, "run.max_minutes": 1e-9, "server.threads": False,
+        "run.run_dir": str(tmp_path / "run"), "run.init_from": str(out),
+        **{f"network.{name}": value for name, value in network.items()},
+    })
+    result = train_robocup(config, env_factory=lambda i: KickScoreEnv(1), print_fn=lambda _: None)
+    assert result.iterations == 0
+    _, expected = load_learner_params(str(out))
+    _, started = load_learner_params(str(tmp_path / "run"))
+    for a, b in zip(jax.tree.leaves(expected), jax.tree.leaves(started), strict=True):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))

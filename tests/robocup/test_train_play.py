@@ -23,6 +23,7 @@ import pytest
 
 from elevens.cli import main
 from elevens.env.soccer import Soccer
+from elevens.robocup.actions import ActionIndex
 from elevens.robocup.play import load_robocup_team, play_robocup
 from elevens.robocup.train import (
     RoboCupTrainConfig,
@@ -270,6 +271,49 @@ def test_every_opponent_kind_trains_in_the_server_loop(tmp_path: Path, kind: str
     assert team.name
 
 
+class KickScoreEnv(SimEnv):
+    """RoboCupEnv's host contract for 12-value actions (``action="thesis12"``): the game is
+    the simulator's, moved by each action's dash power and turn moment, and a team's reward
+    each step is its players' kick selection score (thesis table 4.1), so a learner that
+    learns raises it."""
+
+    def step(self, actions: np.ndarray) -> tuple[Any, Any, np.ndarray, bool, dict[str, Any]]:
+        assert actions.shape == (2, self.players_per_team, 12) and np.isfinite(actions).all()
+        moves = actions[..., [ActionIndex.DASH_POWER, ActionIndex.TURN_MOMENT]]
+        state, obs, rewards, done, info = super().step(np.ascontiguousarray(moves))
+        self.actions_seen[-1] = actions
+        info["goal_reward"] = actions[..., ActionIndex.KICK_SCORE].astype(np.float32)
+        return state, obs, rewards, done, info
+
+
+def test_a_12_value_policy_learns_in_the_server_loop(tmp_path: Path) -> None:
+    # network.actions=12: the policy gives the thesis's 12 values, the servers play them
+    # ("thesis12"), PPO improves them and the run is a team that elevens robocup match plays.
+    envs: list[KickScoreEnv] = []
+
+    def factory(index: int) -> KickScoreEnv:
+        envs.append(KickScoreEnv(1))
+        return envs[-1]
+
+    config = small_config(
+        tmp_path, **{"network.actions": 12, "games_per_iteration": 8, "run.iterations": 12,
+                     "ppo.learning_rate": 3e-3, "env.ball_shaping_weight": 0.0,
+                     "env.approach_shaping_weight": 0.0}
+    )
+    result = train_robocup(config, env_factory=factory, print_fn=lambda _: None)
+    assert result.iterations == 12
+    assert all(a.shape == (2, 1, 12) for env in envs for a in env.actions_seen)
+    logged = read_metrics_csv(tmp_path / "run")
+    reward = logged["env/goal_reward"].values  # the learner's kick scores summed over a game
+    assert reward[-3:].mean() > reward[:3].mean() + 2.0, reward
+    team = load_robocup_team(str(tmp_path / "run"), "thesis12")
+    assert team.actions == 12
+    with pytest.raises(ValueError, match="plays the simulator"):
+        small_config(tmp_path, **{"network.actions": 12, "run.eval_teams": ("naive",)})
+    with pytest.raises(ValueError, match="run.write_gif"):
+        small_config(tmp_path, **{"network.actions": 12, "run.write_gif": True})
+
+
 def test_server_training_can_evaluate_in_the_simulator(tmp_path: Path) -> None:
     # run.eval_teams: the policy also plays the simulator's teams (every run.eval_every
     # iterations and at the end) and the learning curve is drawn, as in elevens train.
@@ -364,10 +408,12 @@ def test_server_bench_reports_cycles_per_second(capsys: pytest.CaptureFixture[st
 
 @pytest.mark.slow
 @needs_rcssserver
-def test_server_short_training_run(tmp_path: Path) -> None:
+@pytest.mark.parametrize("actions", [2, 12])
+def test_server_short_training_run(tmp_path: Path, actions: int) -> None:
     config = small_config(
         tmp_path, **{"env.episode_length": 20, "server.threads": True,
-                     "server.rcssserver": os.environ.get("ELEVENS_RCSSSERVER")}
+                     "server.rcssserver": os.environ.get("ELEVENS_RCSSSERVER"),
+                     "network.actions": actions}
     )
     result = train_robocup(config, print_fn=lambda _: None)
     assert result.iterations == 2 and result.restarts == 0

@@ -434,7 +434,7 @@ def test_the_action_count_is_2_or_12_and_training_takes_2() -> None:
     with pytest.raises(ValueError, match=r"network.actions=5 is invalid: it must be 2 .* or 12"):
         make_config("quickstart", **{"network.actions": 5})
     twelve = make_config("quickstart", **{"network.actions": 12})
-    with pytest.raises(ValueError, match="network.actions=12: the simulator and PPO take"):
+    with pytest.raises(ValueError, match="network.actions=12: the simulator takes the 2-value"):
         make_learner(twelve.learner)
     # A config saved before the field existed reads as 2, without a warning about it.
     saved = make_config("quickstart").to_dict()

@@ -134,8 +134,9 @@ class RoboCupMatchArgs:
 @dataclass(frozen=True)
 class RoboCupImitateArgs:
     """Learn a team from other teams' game logs (behaviour cloning): the (.rcg, .rcl) pairs
-    that `elevens robocup match --log-dir` keeps. Writes a team folder that --team0 plays (and
-    --run.init-from fine-tunes, for a (move, rot) team)."""
+    that `elevens robocup match --log-dir` keeps. Writes a team folder that --team0 plays and
+    --run.init-from fine-tunes (a 12-value team in elevens robocup train only, with
+    --network.actions 12)."""
 
     logs: tuple[str, ...]
     """Folders searched for .rcg/.rcl pairs."""

@@ -18,9 +18,10 @@ velocities and bodies) and a ``.rcl`` (every command each player sent). From the
 :func:`imitate` fits an elevens policy's deterministic action (``tanh`` of its Gaussian's
 mean) to these labels with :func:`command_loss`, on sequences of consecutive cycles through the
 LSTM, and writes a team folder that ``elevens robocup match --team0 FOLDER`` plays, and that
-``--run.init-from`` fine-tunes with PPO. The spread of the Gaussian is not fitted (it is what the
-starting networks give). Between two see messages a player's view is held, as in a match
-(``see_period``).
+``--run.init-from`` fine-tunes with PPO (a 12-value team in ``elevens robocup train
+--network.actions 12`` only: the simulator has no such action). The spread of the Gaussian is
+not fitted (it is what the starting networks give). Between two see messages a player's view
+is held, as in a match (``see_period``).
 """
 
 from __future__ import annotations

@@ -143,6 +143,16 @@ class RoboCupTrainConfig:
                 f"run.devices={self.run.devices!r} is invalid in elevens robocup train: the "
                 "games play on the host and the update on one device; use 0 or 1"
             )
+        if self.learner.network.actions == 12:
+            # Both play games in the simulator, which has no 12-value action.
+            for flag, value in (("run.eval_teams", self.run.eval_teams),
+                                ("run.write_gif", self.run.write_gif)):
+                if value:
+                    raise ValueError(
+                        f"{flag}={value!r} is invalid with network.actions=12: it plays the "
+                        "simulator, whose players take the 2-value (move, rot) action; leave "
+                        "it out (evaluate a 12-value team with elevens robocup match)"
+                    )
         if self.learner.env.game.episode_length < 2:
             raise ValueError(
                 f"env.episode_length={self.learner.env.game.episode_length!r} is invalid in "
@@ -195,7 +205,7 @@ def _default_env_factory(config: RoboCupTrainConfig) -> EnvFactory:
                 goal_reward=game.goal_reward,
                 ball_shaping_weight=game.ball_shaping_weight,
                 approach_shaping_weight=game.approach_shaping_weight,
-                action="sim",
+                action="thesis12" if config.learner.network.actions == 12 else "sim",
                 rcssserver=server.rcssserver,
                 opponent_cmd=server.opponent_cmd,
                 team_names=(
@@ -219,9 +229,10 @@ def _pick(tree: Any, sides: np.ndarray) -> Any:
 
 def make_actor(policy: Any, per_game: bool = False) -> Callable[..., Any]:
     """Jitted: (params, carry, obs [G, n], reset bool[G, n], key) ->
-    (carry, pre_tanh f32[G, n, 2], log_prob f32[G, n], action f32[G, n, 2]): the simulator's
-    ``elevens.play.NetworkActor``, stepped from the host. ``per_game``: params with a leading
-    [G] axis, one network per game (a league's snapshots)."""
+    (carry, pre_tanh f32[G, n, A], log_prob f32[G, n], action f32[G, n, A]), A the policy's
+    2 or 12 actions: the simulator's ``elevens.play.NetworkActor``, stepped from the host.
+    ``per_game``: params with a leading [G] axis, one network per game (a league's
+    snapshots)."""
 
     @jax.jit
     def act(params: Any, carry: Any, obs: Observation, reset: jax.Array, key: jax.Array) -> Any:
@@ -320,8 +331,9 @@ def play_iteration(
         learner_carry, pre_tanh, log_prob, learner_action = act(
             learner_params, learner_carry, learner_obs, player_reset, step_keys[t, 0]
         )
-        actions = np.zeros((num_games, 2, n, 2), np.float32)
-        actions[index, sides] = np.asarray(learner_action)
+        learner_action = np.asarray(learner_action)  # [G, n, 2 or 12]
+        actions = np.zeros((num_games, 2, n, learner_action.shape[-1]), np.float32)
+        actions[index, sides] = learner_action
         if not external_opponent:
             opponent_carry, _, _, opponent_action = (opponent_act or act)(
                 opponent_params, opponent_carry, opponent_obs, player_reset, step_keys[t, 1]
@@ -664,7 +676,7 @@ def _open_robocup_run(
         _, source_params = load_start_params(config.run.init_from, train_config)
     for team in config.run.eval_teams:  # a bad spec fails here, before anything compiles
         evaluation_team(team, config.learner.env.game)
-    learner = make_learner(config.learner, devices=1)
+    learner = make_learner(config.learner, devices=1, plays_rcssserver=True)
     state = learner.init(jax.random.key(config.run.seed), source_params)
     if latest is not None:
         state, _, _ = checkpointer.restore(state)

@@ -69,7 +69,7 @@ class Team:
             raise ValueError(
                 f"team {self.name!r} ({self.spec}) gives the thesis's {self.actions}-value "
                 "RoboCup action, not the simulator's (move, rot): it plays rcssserver only "
-                "(elevens robocup match)"
+                "(elevens robocup match, elevens robocup train --network.actions 12)"
             )
         if self.size_dependent and self.trained_players != players_per_team:
             raise ValueError(

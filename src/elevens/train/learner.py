@@ -425,20 +425,27 @@ layer's, above this one)."""
 
 
 def make_learner(
-    config: LearnerConfig, load_team: TeamLoader | None = None, *, devices: int = 0
+    config: LearnerConfig,
+    load_team: TeamLoader | None = None,
+    *,
+    devices: int = 0,
+    plays_rcssserver: bool = False,
 ) -> Learner:
     """Build the pure functions of ``config`` (validated first: nothing compiles on a bad one)
     on ``devices`` (``parallel.data_mesh``: 0 = all). ``load_team`` loads the fixed teams of
-    ``opponent.mix``; a config with such teams needs it.
+    ``opponent.mix``; a config with such teams needs it. ``plays_rcssserver``: the caller
+    plays the games in rcssserver and calls only ``improve`` (``elevens robocup train``), so
+    the policy may give the thesis's 12-value action, which the simulator cannot play.
 
     They are cached on their arguments: building the same learner again in one process (a
     resume, a longer run, another run directory) reuses the compiled chunk.
     """
     validate_learner(config)
-    if config.network.actions != 2:
+    if config.network.actions != 2 and not plays_rcssserver:
         raise ValueError(
-            f"network.actions={config.network.actions}: the simulator and PPO take the 2-value "
-            "(move, rot) action; a 12-value policy plays rcssserver only (elevens robocup match)"
+            f"network.actions={config.network.actions}: the simulator takes the 2-value "
+            "(move, rot) action; a 12-value policy plays and trains in rcssserver only "
+            "(elevens robocup match, elevens robocup train)"
         )
     if load_team is None and len(opponent_mix(config)) > 1:
         raise ValueError(

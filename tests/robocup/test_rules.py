@@ -152,6 +152,13 @@ def test_the_goalie_catches_a_fresh_ball_in_reach_inside_its_penalty_area() -> N
         assert apply_rules(POLICY, _view(**changes), "play_on", 0)[1] == "policy"
     assert apply_rules(POLICY, _view(**reach), "play_on", 0, catch_allowed=False)[1] == "policy"
     assert apply_rules(POLICY, _view(**reach), "play_on", 0, goalie=None)[1] == "policy"
+    # At the edge of the range, as a match's float32 percepts give it: a catch the server takes
+    # (this one stopped a match: 90.0000025 degrees is outside [-90, 90]).
+    for edge in (math.pi / 2, -math.pi / 2):
+        bearing = np.array([edge, 0.0, 0.0], np.float32)
+        commands, what = apply_rules(POLICY, _view(**dict(reach, ball_bearing=bearing)),
+                                     "play_on", 0)
+        assert what == "catch" and commands[0].to_text() in ("(catch -90)", "(catch 90)")
 
 
 def test_nobody_sees_the_ball_leaves_our_set_piece_to_the_policy() -> None:

@@ -290,7 +290,10 @@ def apply_rules(
         and abs(view.ball_bearing[goalie]) <= math.pi / 2  # the server's catch range: +-90
         and _in_own_penalty_area(view.position[goalie])
     ):
-        out[goalie] = Catch(_degrees_clockwise(float(view.ball_bearing[goalie])))
+        # Clipped: a float32 bearing that passes the check above as pi/2 is 90.0000025 degrees
+        # in float64, which the server's range refuses.
+        direction = _degrees_clockwise(float(view.ball_bearing[goalie]))
+        out[goalie] = Catch(min(max(direction, -90.0), 90.0))
         return out, "catch"
     return out, "policy"
 

@@ -208,7 +208,7 @@ def main() -> None:
     if probe == "longko":
         rules._set_piece_kick = _long_kick_off(rules._set_piece_kick)
     if probe == "tackle":
-        team.no_second_touch = _tackles(team.no_second_touch)
+        rules.no_second_touch = _tackles(rules.no_second_touch)
     team.load_robocup_team = lambda spec, action, **kw: _player(probe, kw.get("turn_scale", 180.0))
     from elevens.cli import main as elevens_main
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -12,6 +13,7 @@ from elevens.robocup.rules import (
     CATCH_REACH,
     GUARD_DEPTH,
     RECOVERING_DASH,
+    SEARCH_TURN,
     SECOND_TOUCH_WAIT,
     STAMINA_RESERVE,
     SecondTouch,
@@ -24,6 +26,7 @@ from elevens.robocup.rules import (
     mode_kind,
     no_second_touch,
     pace_dashes,
+    set_piece_taker,
 )
 
 
@@ -161,9 +164,12 @@ def test_the_goalie_catches_a_fresh_ball_in_reach_inside_its_penalty_area() -> N
         assert what == "catch" and commands[0].to_text() in ("(catch -90)", "(catch 90)")
 
 
-def test_nobody_sees_the_ball_leaves_our_set_piece_to_the_policy() -> None:
+def test_when_nobody_sees_the_ball_in_our_set_piece_the_outfield_looks_for_it() -> None:
+    # Left to the policy, a set piece nobody sees may never be taken (training servers have
+    # no drop ball): a policy that never turns to the ball stalled a kick-in for good.
     commands, what = apply_rules(POLICY, _view(ball_seen=[False] * 3), "corner_kick_l", 0)
-    assert what == "policy" and commands == POLICY
+    assert what == "set_piece" and commands[0] == POLICY[0]
+    assert commands[1:] == [Turn(SEARCH_TURN)] * 2
 
 
 def test_time_over_sends_nothing() -> None:
@@ -279,3 +285,41 @@ def test_a_set_piece_taker_does_not_touch_the_ball_again_before_a_teammate() -> 
     touch = SecondTouch(taker=1, since=10)
     assert no_second_touch(kicks, away, touch, 10 + SECOND_TOUCH_WAIT + 1) == kicks
     assert no_second_touch(kicks, away, SecondTouch(), 12) == kicks  # no set piece: no ban
+
+
+def test_routines_turn_on_a_fresh_see_only() -> None:
+    # Poses and bearings are the latest see's; after a turn they are out of date until the
+    # next see. Turning again on a stale see overshoots: the set-piece taker and the goalie
+    # spun in place.
+    behind = _ball_at((-20.0, 0.0), heading=math.pi)
+    stale = dataclasses.replace(behind, stale=np.array([1, 0, 0], np.int32))
+    assert isinstance(guard_goal(POLICY, behind, "play_on", 0)[0][0], Turn)
+    commands, guarded = guard_goal(POLICY, stale, "play_on", 0)
+    assert guarded and commands[0] is None  # it waits for its next see
+    side_on = _view(ball_bearing=[0.0, 1.0, 0.0], ball_distance=[40.0, 10.0, 30.0])
+    commands, _ = apply_rules(POLICY, side_on, "kick_in_l", 0)
+    assert isinstance(commands[1], Turn)
+    side_on_stale = dataclasses.replace(side_on, stale=np.array([0, 2, 0], np.int32))
+    commands, _ = apply_rules(POLICY, side_on_stale, "kick_in_l", 0)
+    assert commands[1] is None
+    # Facing the ball it runs on a stale see, but kicks (aimed from the see's heading) only
+    # on a fresh one.
+    ahead_stale = dataclasses.replace(side_on_stale, ball_bearing=np.zeros(3))
+    assert isinstance(apply_rules(POLICY, ahead_stale, "kick_in_l", 0)[0][1], Dash)
+    at_ball = _view(ball_distance=[40.0, 0.8, 30.0])
+    assert isinstance(apply_rules(POLICY, at_ball, "kick_in_l", 0)[0][1], Kick)
+    at_ball_stale = dataclasses.replace(at_ball, stale=np.array([0, 1, 0], np.int32))
+    assert apply_rules(POLICY, at_ball_stale, "kick_in_l", 0)[0][1] is None
+
+
+def test_the_set_piece_taker_stays_while_it_sees_the_ball() -> None:
+    # Player 2 is nearer by this see, but player 1 is already on its way: it stays the taker
+    # (nearest by each see, takers took turns and nobody reached the ball).
+    view = _view(ball_distance=[40.0, 20.0, 15.0])
+    assert set_piece_taker(view, exclude=0) == 2
+    assert set_piece_taker(view, exclude=0, keep=1) == 1
+    commands, _ = apply_rules(POLICY, view, "kick_in_l", 0, taker=1)
+    assert commands[1] != POLICY[1] and commands[2] == POLICY[2]
+    lost = _view(ball_distance=[40.0, 20.0, 15.0], ball_seen=[True, False, True])
+    assert set_piece_taker(lost, exclude=0, keep=1) == 2  # it lost the ball: the nearest
+    assert set_piece_taker(view, exclude=1, keep=1) == 2  # excluded (the goalie)

@@ -75,10 +75,12 @@ from elevens.robocup.protocol import (
     ServerParams,
     Turn,
 )
+from elevens.robocup.rules import MATCH_CLOCK, MatchRoutines, kick_off_positions
 from elevens.robocup.server import RcssserverNotFound, ServerAddress, ServerProcess
 
 __all__ = [
     "ACTION_MODES",
+    "EPISODE_MODES",
     "OUT_OF_PLAY_MODES",
     "VIEW_WIDTHS",
     "RoboCupConfig",
@@ -91,6 +93,10 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 ACTION_MODES = ("sim", "thesis12")
+EPISODE_MODES = ("drill", "match")
+#: Server options of match episodes over the training ones: the referee drops a ball that
+#: nobody plays for 100 cycles in a set piece, as in a match (elevens.robocup.match).
+MATCH_EPISODE_OPTIONS = {"server::drop_ball_time": "100"}
 VIEW_WIDTHS = {"narrow": 60.0, "normal": 120.0, "wide": 180.0}  # degrees, synch-see (v18+)
 # Referee modes after the ball left the field over a side line or a goal line outside the goal
 # (drop_ball: out with no last toucher, e.g. a trainer-placed ball).
@@ -116,6 +122,15 @@ class RoboCupConfig:
     ball_spawn: str = "random"
     """"random" (uniform over the central half of the field, the simulator's default) or
     "centre"."""
+    episodes: str = "drill"
+    """How an episode is played. "drill": the trainer spawns everyone (``spawn``,
+    ``ball_spawn``) into play_on and respawns them after a goal; the policies act in every
+    cycle (the thesis' training in the server). "match": as a regulation match: each episode
+    starts from the kick-off formation with a kick-off (either side, drawn), the referee
+    restarts play after a goal and when the ball goes out, and each elevens side plays under
+    the routines a team plays matches with (elevens.robocup.rules.MatchRoutines: kick-off
+    moves, set pieces, the goalie's catch and guard, no second touch, stamina pacing) and
+    observes the match's clock, so what it learns is what ``elevens robocup match`` plays."""
     keep_ball_in_play: bool = False
     """True: a ball about to leave (or that left) over a side line or a goal line outside the goal
     is put back inside by the trainer, bouncing as off the simulator's walls, and play_on goes on
@@ -170,6 +185,7 @@ class RoboCupConfig:
             "spawn": SPAWN_MODES,
             "ball_spawn": BALL_SPAWN_MODES,
             "action": ACTION_MODES,
+            "episodes": EPISODE_MODES,
             "view": tuple(VIEW_WIDTHS),
         }
         for name, allowed in choices.items():
@@ -189,6 +205,11 @@ class RoboCupConfig:
             )
         if self.opponent_cmd is not None and not self.opponent_cmd.strip():
             raise ValueError("opponent_cmd='' is invalid: give the opponent's start command")
+        if self.episodes == "match" and self.keep_ball_in_play:
+            raise ValueError(
+                "keep_ball_in_play=True is invalid with episodes='match': a match's referee "
+                "restarts play when the ball goes out; use one or the other"
+            )
 
     @property
     def action_size(self) -> int:
@@ -291,7 +312,9 @@ class ClientLike(Protocol):
 
 
 def _default_server(config: RoboCupConfig) -> ServerLike:
-    return ServerProcess(config.rcssserver, options=dict(config.server_options)).start()
+    extra = MATCH_EPISODE_OPTIONS if config.episodes == "match" else {}
+    options = {**extra, **config.server_options}
+    return ServerProcess(config.rcssserver, options=options).start()
 
 
 def _default_client(server: ServerLike, config: RoboCupConfig) -> ClientLike:
@@ -371,7 +394,15 @@ class RoboCupEnv:
         self._server: ServerLike | None = None
         self._client: ClientLike | None = None
         n = self.config.players_per_team
-        self._memory = PerceptMemory(self.params, self.config.team_names, PLAYER_DECAY)
+        self._match = self.config.episodes == "match"
+        # A match's observations count time as a team in a match does (rules.MATCH_CLOCK).
+        observed = (
+            dataclasses.replace(self.params, episode_length=MATCH_CLOCK)
+            if self._match
+            else self.params
+        )
+        self._memory = PerceptMemory(observed, self.config.team_names, PLAYER_DECAY)
+        self._routines: list[MatchRoutines] = []
         self._scaling = ActionScaling()
         self._kickable = kickable_distance()
         self._rng = np.random.default_rng()
@@ -430,9 +461,10 @@ class RoboCupEnv:
         commands, applied = self._commands(actions)
         if self._client is None or self._state is None:
             raise RuntimeError("RoboCupEnv.step called before reset()")
+        ruled = self._apply_routines(commands)
         before = self._state
         try:
-            cycle = self._client.step(self._own(commands))
+            cycle = self._client.step(self._own(ruled))
         except _DEAD as error:
             log.warning("rcssserver died (%s); restarting", error)
             self._recover()
@@ -441,6 +473,8 @@ class RoboCupEnv:
         self._last_cycle = cycle
         self._last_actions = applied
         self._memory.update(cycle.players)
+        for routines in self._routines:
+            routines.observe_mode(cycle.play_mode)
         goals = np.asarray(cycle.goals, np.int32).reshape(2)
         self._score = self._score + goals
         after = self._build_state(cycle, previous=before)
@@ -460,7 +494,7 @@ class RoboCupEnv:
         play_mode = cycle.play_mode
         ball_returned = False
         try:
-            if goals.any():
+            if goals.any() and not self._match:
                 play_mode = self._respawn().play_mode
             elif self.config.keep_ball_in_play:
                 ball_returned = self._keep_ball_in_play(cycle, before)
@@ -558,7 +592,7 @@ class RoboCupEnv:
             placed = self._spawn(key, self.params)
         return _Placement(*(np.asarray(leaf, np.float64) for leaf in placed))
 
-    def _place(self, placed: _Placement) -> Cycle:
+    def _place(self, placed: _Placement, play_mode: str = "play_on") -> Cycle:
         """Send a spawn (world frame) to the server through the trainer."""
         assert self._client is not None
         n = self.players_per_team
@@ -568,13 +602,21 @@ class RoboCupEnv:
             body_from_world_heading(placed.headings).reshape(2, n),
             ball_srv=(float(ball[0]), float(ball[1])),
             ball_vel=(0.0, 0.0),
-            play_mode="play_on",
+            play_mode=play_mode,
         )
 
-    def _start_play(self, placed: _Placement) -> Cycle:
+    def _kick_off_placement(self, kicker: int) -> _Placement:
+        """Both teams in the kick-off formation (``kicker``'s taker at the ball), world frame."""
+        n = self.players_per_team
+        sign = np.array([1.0, -1.0])[:, None, None]
+        team = np.stack([kick_off_positions(n, taker=side == kicker) for side in (0, 1)])
+        headings = np.repeat(np.array([0.0, np.pi]), n)
+        return _Placement((team * sign).reshape(2 * n, 2), headings, np.zeros(2))
+
+    def _start_play(self, placed: _Placement, play_mode: str = "play_on") -> Cycle:
         """Place everyone and reset the percepts to the spawn (known poses)."""
         n = self.players_per_team
-        cycle = self._place(placed)
+        cycle = self._place(placed, play_mode)
         sign = np.array([1.0, -1.0])[:, None, None]
         self._start_team = placed.positions.reshape(2, n, 2) * sign
         headings = placed.headings.reshape(2, n) + np.array([0.0, np.pi])[:, None]
@@ -588,10 +630,24 @@ class RoboCupEnv:
         self._step = 0
         self._score = np.zeros(2, np.int32)
         self._last_actions = np.zeros((2, n, 2), np.float32)
-        placed = self._draw_spawn()
-        self._start_world = placed.positions
         self._state = None
-        cycle = self._start_play(placed)
+        if self._match:
+            kicker = int(self._rng.integers(2))
+            placed = self._kick_off_placement(kicker)
+            self._start_world = placed.positions
+            cycle = self._start_play(placed, ("kick_off_l", "kick_off_r")[kicker])
+            # The team's own clock and formation, as RoboCupTeam observes them in a match.
+            self._start_team = np.stack([kick_off_positions(n, taker=False)] * 2)
+            elevens_sides = (0,) if self.config.opponent_cmd is not None else (0, 1)
+            self._routines = [
+                MatchRoutines(side, n, kickable=self._kickable) for side in elevens_sides
+            ]
+            for routines in self._routines:
+                routines.observe_mode(cycle.play_mode)
+        else:
+            placed = self._draw_spawn()
+            self._start_world = placed.positions
+            cycle = self._start_play(placed)
         self._state = self._build_state(cycle, previous=None, spawn=placed)
         return self._state, self._observe()
 
@@ -637,7 +693,20 @@ class RoboCupEnv:
         return state
 
     def _observe(self) -> Observation:
-        return self._memory.observation(self._step, self._last_actions, self._start_team)
+        step = self._routines[0].clock % MATCH_CLOCK if self._match else self._step
+        return self._memory.observation(step, self._last_actions, self._start_team)
+
+    def _apply_routines(self, commands: list[Command]) -> list[Command | None]:
+        """In match episodes, each elevens side's commands with its match routines applied
+        (for the cycle last observed); in drills, ``commands`` unchanged."""
+        out: list[Command | None] = list(commands)
+        if not self._match or self._last_cycle is None:
+            return out
+        n = self.players_per_team
+        for routines in self._routines:
+            own = slice(routines.side * n, (routines.side + 1) * n)
+            out[own], _ = routines.apply(out[own], self._memory, self._last_cycle)
+        return out
 
     def _keep_ball_in_play(self, cycle: Cycle, before: State) -> bool:
         """Bounce a ball that left (or is about to leave) over a side line or a goal line outside

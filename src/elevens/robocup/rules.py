@@ -33,15 +33,18 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
 from elevens.env.params import formation
-from elevens.robocup.observe import FIELD_LENGTH, FIELD_WIDTH
+from elevens.robocup.observe import FIELD_LENGTH, FIELD_WIDTH, PerceptMemory
 from elevens.robocup.protocol import Catch, Command, Dash, Kick, Move, Turn
 
 __all__ = [
     "CATCH_REACH",
+    "MATCH_CLOCK",
+    "MatchRoutines",
     "SHOOT_RANGE",
     "TeamView",
     "apply_rules",
@@ -53,6 +56,7 @@ __all__ = [
 ]
 
 CATCH_REACH = 1.15  # metres: server::catchable_area_l = 1.2, less the see's quantisation
+SEARCH_TURN = 90.0  # degrees a player turns a cycle in our set piece while nobody sees the ball
 SHOOT_RANGE = 30.0  # metres to the opponent goal within which a set piece is a shot
 KICKABLE = 1.085  # player_size + ball_size + kickable_margin of the default player type
 PENALTY_AREA = (36.0, 20.16)  # |x| from, |y| up to (the penalty box flags)
@@ -218,22 +222,45 @@ def _set_piece_kick(view: TeamView, player: int, play_mode: str, n: int) -> Kick
     return _kick_to(view, player, wing, 100.0)
 
 
-def _go_to_ball(view: TeamView, player: int) -> Command:
+def _go_to_ball(view: TeamView, player: int) -> Command | None:
     bearing = float(view.ball_bearing[player])
     if abs(bearing) > _TURN_FIRST:
-        return Turn(_degrees_clockwise(bearing))
+        # A see's bearing is from before the turns made since: turning again on it overshoots
+        # (a taker spun in place for 100 cycles), so turn on a fresh see only.
+        return Turn(_degrees_clockwise(bearing)) if view.stale[player] == 0 else None
     return Dash(100.0 if view.ball_distance[player] > 3.0 else 50.0)
 
 
-def set_piece_taker(view: TeamView, exclude: int | None = None) -> int | None:
+def set_piece_taker(
+    view: TeamView, exclude: int | None = None, keep: int | None = None
+) -> int | None:
     """The player nearest the ball among those who see it (but ``exclude``); None when nobody
-    does."""
+    does. ``keep``: the taker so far, who stays the taker while it sees the ball (nearest by
+    each see, the takers took turns and nobody reached the ball)."""
+    if keep is not None and keep != exclude and view.ball_seen[keep]:
+        return keep
     seen = np.flatnonzero(view.ball_seen)
     if exclude is not None:
         seen = seen[seen != exclude]
     if len(seen) == 0:
         return None
     return int(seen[np.argmin(view.ball_distance[seen])])
+
+
+def our_set_piece_taker(
+    view: TeamView, play_mode: str, goalie: int | None = 0, keep: int | None = None
+) -> int | None:
+    """Who takes our set piece in ``play_mode`` (see :func:`set_piece_taker`; ``keep``: the
+    taker so far)."""
+    holder = goalie is not None and view.ball_seen[goalie] and (
+        view.ball_distance[goalie] <= KICKABLE and play_mode.startswith("free_kick")
+    )
+    if holder:
+        return goalie
+    # The goalie leaves its goal for a goal kick or a ball it holds only: it once ran 30 m
+    # to a kick-in and helios-base scored into the empty goal.
+    stays = None if play_mode.startswith("goal_kick") else goalie
+    return set_piece_taker(view, exclude=stays, keep=keep)
 
 
 def _in_own_penalty_area(position: np.ndarray) -> bool:
@@ -249,11 +276,13 @@ def apply_rules(
     halves_played: int = 1,
     goalie: int | None = 0,
     catch_allowed: bool = True,
+    taker: int | None = None,
 ) -> tuple[list[Command | None], str]:
     """The policy's ``commands`` (one per player) with the routines of the module docstring
     applied for ``side`` in ``play_mode``. Returns (commands, what: "move", "set_piece",
     "catch" or "policy"). ``goalie``: the goalie's index (None: no goalie); ``catch_allowed``:
-    False during the server's catch ban (5 cycles after an attempt)."""
+    False during the server's catch ban (5 cycles after an attempt); ``taker``: who took our
+    set piece last cycle (:func:`our_set_piece_taker`)."""
     n = len(commands)
     out = list(commands)
     kind = mode_kind(play_mode, side)
@@ -265,17 +294,18 @@ def apply_rules(
             out[i] = Move(float(x), float(-y))  # the server's own frame has y down
         return out, "move"
     if kind == "ours":
-        holder = goalie is not None and view.ball_seen[goalie] and (
-            view.ball_distance[goalie] <= KICKABLE and play_mode.startswith("free_kick")
-        )
-        # The goalie leaves its goal for a goal kick or a ball it holds only: it once ran 30 m
-        # to a kick-in and helios-base scored into the empty goal.
-        stays = None if play_mode.startswith("goal_kick") else goalie
-        taker = goalie if holder else set_piece_taker(view, exclude=stays)
+        taker = our_set_piece_taker(view, play_mode, goalie, keep=taker)
         if taker is None:
-            return out, "policy"
+            # Nobody sees the ball: the outfield players look for it (the set piece would
+            # otherwise wait for ever; a quarter turn at a time covers the field in a few sees).
+            for i in range(n):
+                if i != goalie:
+                    out[i] = Turn(SEARCH_TURN)
+            return out, "set_piece"
         if view.ball_distance[taker] <= KICKABLE:
-            out[taker] = _set_piece_kick(view, taker, play_mode, n)
+            # Aimed from the see's heading: on a stale see the taker may have turned since.
+            fresh = view.stale[taker] == 0
+            out[taker] = _set_piece_kick(view, taker, play_mode, n) if fresh else None
         else:
             out[taker] = _go_to_ball(view, taker)
         return out, "set_piece"
@@ -347,14 +377,17 @@ def guard_goal(
         target = goal + from_goal / max(distance, 1e-6) * depth
     offset = target - position
     gap = float(np.linalg.norm(offset))
+    # Pose and bearing are the latest see's: after a turn they are out of date until the next
+    # see, so it turns on a fresh see only (turning on each stale one spun it round).
+    fresh = view.stale[goalie] == 0
     if abs(bearing) > _FACE_BALL:
-        out[goalie] = Turn(_degrees_clockwise(bearing))
+        out[goalie] = Turn(_degrees_clockwise(bearing)) if fresh else None
     elif gap > _GUARD_SLACK:
         # Facing the ball, it steps to its point in any direction (the server's omni-dash).
         direction = math.atan2(offset[1], offset[0]) - heading
         out[goalie] = Dash(float(min(100.0, 30.0 * gap + 20.0)), _degrees_clockwise(direction))
     else:
-        out[goalie] = Turn(_degrees_clockwise(bearing))
+        out[goalie] = Turn(_degrees_clockwise(bearing)) if fresh else None
     return out, True
 
 
@@ -393,3 +426,112 @@ def no_second_touch(
     if isinstance(out[state.taker], Kick):
         out[state.taker] = None
     return out
+
+
+CATCH_BAN = 5  # server::catch_ban_cycle: cycles between two catch attempts
+MATCH_CLOCK = 400
+"""Time left in a ruled team's observations restarts at each kick-off and every this many
+cycles of play: policies were trained on episodes of about this length and have never seen a
+6000-cycle game."""
+
+
+def team_view(memory: PerceptMemory, side: int) -> TeamView:
+    """One team's row of the memory as a TeamView (ball from the latest see)."""
+    ball = memory.entities[side, :, -1, :]
+    seen = memory.mask[side, :, -1]
+    bearing = np.arctan2(ball[:, 2], ball[:, 1])
+    distance = np.where(seen, ball[:, 0] * memory.params.field_length, np.inf)
+    close = np.isfinite(memory.ball_distance[side]) & ~seen
+    # A ball only felt close behind ((B) outside the cone): its distance, bearing unknown (pi).
+    distance = np.where(close, memory.ball_distance[side], distance)
+    bearing = np.where(close, math.pi, bearing)
+    return TeamView(
+        position=memory.position[side].copy(),
+        heading=memory.heading[side].copy(),
+        ball_seen=seen | close,
+        ball_distance=distance,
+        ball_bearing=bearing,
+        stale=memory.stale[side].copy(),
+    )
+
+
+def staminas(cycle: Any, side: int, n: int) -> tuple[list[float | None], list[float | None]]:
+    """Each of a team's players' latest stamina and stamina capacity (unum order; None:
+    unknown) from a client Cycle."""
+    stamina: list[float | None] = [None] * n
+    capacity: list[float | None] = [None] * n
+    for player in cycle.players:
+        body = player.sense_body
+        if player.side == side and body is not None and 1 <= player.unum <= n:
+            stamina[player.unum - 1] = float(body.stamina)
+            if body.stamina_capacity is not None:
+                capacity[player.unum - 1] = float(body.stamina_capacity)
+    return stamina, capacity
+
+
+@dataclasses.dataclass
+class MatchRoutines:
+    """Every routine of the module docstring for one team over a match (or a training episode
+    played as one): what a team runs between its policy and the server each cycle, with the
+    bookkeeping that spans cycles (halves, the catch ban, the set-piece taker, the clock of
+    the observations). ``elevens robocup match`` and ``RoboCupEnv(episodes="match")`` both use
+    it, so a policy trains under the routines it plays under."""
+
+    side: int
+    n: int
+    kickable: float = KICKABLE
+    halves: int = 1  # the half being played (before_kick_off again: the next one)
+    previous_mode: str = "before_kick_off"
+    cycles: int = 0
+    clock: int = 0  # cycles since the last kick-off (the observations' time)
+    last_catch: int = -CATCH_BAN
+    catches: int = 0
+    set_piece_cycles: int = 0
+    touch: SecondTouch = dataclasses.field(default_factory=SecondTouch)
+    taker: int | None = None  # who is taking our set piece
+
+    def observe_mode(self, mode: str) -> int:
+        """Note this cycle's play mode before the policy acts; the observations' clock."""
+        if mode == "before_kick_off" and self.previous_mode != "before_kick_off":
+            self.halves += 1  # half time
+        if mode.startswith("kick_off"):
+            self.clock = 0
+        self.previous_mode = mode
+        return self.clock % MATCH_CLOCK
+
+    def apply(
+        self, commands: Sequence[Command | None], memory: PerceptMemory, cycle: Any
+    ) -> tuple[list[Command | None], str]:
+        """The policy's commands for this cycle (the one :meth:`observe_mode` saw) with the
+        routines applied; (commands, what: "move", "set_piece", "catch" or "policy")."""
+        mode = self.previous_mode
+        view = team_view(memory, self.side)
+        policy = list(commands)
+        out, what = apply_rules(
+            policy,
+            view,
+            mode,
+            self.side,
+            halves_played=self.halves,
+            catch_allowed=self.cycles - self.last_catch >= CATCH_BAN,
+            taker=self.taker,
+        )
+        ours = mode_kind(mode, self.side) == "ours"
+        self.taker = our_set_piece_taker(view, mode, keep=self.taker) if ours else None
+        if what == "set_piece":
+            for i, (mine, routine) in enumerate(zip(policy, out, strict=True)):
+                if isinstance(routine, Kick) and routine is not mine:
+                    self.touch.taker, self.touch.since = i, self.cycles
+        busy = out[0] is not policy[0]  # a routine's command
+        out, _ = guard_goal(out, view, mode, self.side, goalie_busy=busy)
+        if what == "policy":
+            out = no_second_touch(out, view, self.touch, self.cycles, kickable=self.kickable)
+        stamina, capacity = staminas(cycle, self.side, self.n)
+        out = pace_dashes(out, stamina, capacity, int(cycle.server_time))
+        if what == "catch":
+            self.catches += 1
+            self.last_catch = self.cycles
+        self.set_piece_cycles += what == "set_piece"
+        self.cycles += 1
+        self.clock += 1
+        return out, what

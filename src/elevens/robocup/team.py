@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-import math
 import time
 from collections.abc import Callable
 from typing import Any
@@ -38,27 +37,14 @@ from elevens.robocup.env import (
 )
 from elevens.robocup.observe import PLAYER_DECAY, PerceptMemory
 from elevens.robocup.play import load_robocup_team
-from elevens.robocup.protocol import ChangeView, Command, Kick, ServerParams
-from elevens.robocup.rules import (
-    SecondTouch,
-    TeamView,
-    apply_rules,
-    guard_goal,
-    kick_off_positions,
-    mode_kind,
-    no_second_touch,
-    pace_dashes,
-)
+from elevens.robocup.protocol import ChangeView, Command, ServerParams
+from elevens.robocup.rules import MATCH_CLOCK, MatchRoutines, kick_off_positions, mode_kind
 from elevens.robocup.server import ServerAddress
 
 __all__ = ["RoboCupTeam", "TeamResult"]
 
 log = logging.getLogger(__name__)
 
-_CATCH_BAN = 5  # server::catch_ban_cycle: cycles between two catch attempts
-# Time left in the observations restarts every this many cycles of play: policies were trained
-# on episodes of about this length and have never seen a 6000-cycle game.
-_DEFAULT_EPISODE = 400
 
 
 @dataclasses.dataclass(frozen=True)
@@ -105,7 +91,7 @@ class RoboCupTeam:
         self.config = RoboCupConfig(
             players_per_team=players_per_team,
             view=view,
-            episode_length=_DEFAULT_EPISODE,
+            episode_length=MATCH_CLOCK,
             # An opponent whose name we were not told is any other named team: a made-up name
             # here would hide every opponent from the observations.
             team_names=(team_name, opponent_name),
@@ -135,7 +121,7 @@ class RoboCupTeam:
         start[side] = kick_off_positions(n, taker=False)
         actions = np.zeros((2, n, 2), np.float32)
         actions[side] = last
-        obs = memory.observation(step % _DEFAULT_EPISODE, actions, start)
+        obs = memory.observation(step % MATCH_CLOCK, actions, start)
         return jax.tree.map(lambda leaf: leaf[side], obs)
 
     def _commands(
@@ -222,12 +208,8 @@ class RoboCupTeam:
         carry = self.player.init_carry(n)
         key = self.key
         last = np.zeros((n, 2), np.float32)
-        counts = dict(cycles=0, catches=0, set_piece=0, missed=0)
-        step = 0
-        halves = 1  # the half being played (before_kick_off again: the next one)
-        last_catch = -_CATCH_BAN
-        touch = SecondTouch()
-        previous_mode = cycle.play_mode
+        counts = dict(cycles=0, missed=0)
+        routines = MatchRoutines(side, n, kickable=kickable, previous_mode=cycle.play_mode)
         ended = "stopped"
         cycle = client.step([ChangeView(self.config.view)] * n)
         cycle = client.step([None] * n)  # real time: the sensors queued while connecting
@@ -239,48 +221,21 @@ class RoboCupTeam:
                 if mode_kind(mode, side) == "over":
                     ended = "time_over"
                     break
-                if mode == "before_kick_off" and previous_mode != "before_kick_off":
-                    halves += 1  # half time
-                if mode.startswith("kick_off"):
-                    step = 0
-                previous_mode = mode
+                clock = routines.observe_mode(mode)
                 if step_hook is not None:
                     step_hook(counts["cycles"])
                 key, act_key = jax.random.split(key)
-                obs = self._observation(memory, side, step, last)
+                obs = self._observation(memory, side, clock, last)
                 carry, actions = self.player.act(carry, obs, act_key)
                 last, commands = self._commands(actions, memory.ball_distance[side], kickable,
                                                 scaling)
-                what = "policy"
                 if self.rules:
-                    view = _team_view(memory, side)
-                    policy_commands = commands
-                    commands, what = apply_rules(
-                        commands,
-                        view,
-                        mode,
-                        side,
-                        halves_played=halves,
-                        catch_allowed=counts["cycles"] - last_catch >= _CATCH_BAN,
-                    )
-                    if what == "set_piece":
-                        _note_set_piece_kick(policy_commands, commands, touch, counts["cycles"])
-                    busy = commands[0] is not policy_commands[0]  # a routine's command
-                    commands, _ = guard_goal(commands, view, mode, side, goalie_busy=busy)
-                    if what == "policy":
-                        commands = no_second_touch(
-                            commands, view, touch, counts["cycles"], kickable=kickable
-                        )
-                    stamina, capacity = _staminas(cycle, side, n)
-                    commands = pace_dashes(commands, stamina, capacity, int(cycle.server_time))
-                if what == "catch":
-                    counts["catches"] += 1
-                    last_catch = counts["cycles"]
-                counts["set_piece"] += what == "set_piece"
+                    commands, _ = routines.apply(commands, memory, cycle)
+                else:
+                    routines.clock += 1
                 cycle = client.step(commands)
                 counts["cycles"] += 1
                 counts["missed"] += cycle.missed
-                step += 1
         except ServerDied:
             ended = "server_exit"  # auto_mode exits the server after the game
         goals = client.score
@@ -293,52 +248,9 @@ class RoboCupTeam:
             server_time=int(cycle.server_time),
             late_player_cycles=int(client.stats.stale_thinks - setup_late),
             missed=counts["missed"],
-            catches=counts["catches"],
-            set_piece_cycles=counts["set_piece"],
+            catches=routines.catches,
+            set_piece_cycles=routines.set_piece_cycles,
             wall_s=time.perf_counter() - began,
             warm_up_s=self.warm_up_s,
             ended=ended,
         )
-
-
-def _note_set_piece_kick(
-    before: list[Command | None], after: list[Command | None], touch: SecondTouch, cycle: int
-) -> None:
-    """Remember the player whose command a set-piece routine replaced by a kick."""
-    for i, (policy, routine) in enumerate(zip(before, after, strict=True)):
-        if isinstance(routine, Kick) and routine is not policy:
-            touch.taker, touch.since = i, cycle
-
-
-def _team_view(memory: PerceptMemory, side: int) -> TeamView:
-    """One team's row of the memory as rules.TeamView (ball from the latest see)."""
-    ball = memory.entities[side, :, -1, :]
-    seen = memory.mask[side, :, -1]
-    bearing = np.arctan2(ball[:, 2], ball[:, 1])
-    distance = np.where(seen, ball[:, 0] * memory.params.field_length, np.inf)
-    close = np.isfinite(memory.ball_distance[side]) & ~seen
-    # A ball only felt close behind ((B) outside the cone): its distance, bearing unknown (pi).
-    distance = np.where(close, memory.ball_distance[side], distance)
-    bearing = np.where(close, math.pi, bearing)
-    return TeamView(
-        position=memory.position[side].copy(),
-        heading=memory.heading[side].copy(),
-        ball_seen=seen | close,
-        ball_distance=distance,
-        ball_bearing=bearing,
-        stale=memory.stale[side].copy(),
-    )
-
-
-def _staminas(cycle: Any, side: int, n: int) -> tuple[list[float | None], list[float | None]]:
-    """Each of the team's players' latest stamina and stamina capacity (unum order; None:
-    unknown)."""
-    stamina: list[float | None] = [None] * n
-    capacity: list[float | None] = [None] * n
-    for player in cycle.players:
-        body = player.sense_body
-        if player.side == side and body is not None and 1 <= player.unum <= n:
-            stamina[player.unum - 1] = float(body.stamina)
-            if body.stamina_capacity is not None:
-                capacity[player.unum - 1] = float(body.stamina_capacity)
-    return stamina, capacity

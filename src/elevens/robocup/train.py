@@ -63,8 +63,15 @@ class ServerConfig:
     external opponent. One server process plays each game of an iteration
     (``games_per_iteration`` servers)."""
 
+    episodes: str = "drill"
+    """"drill": episodes spawned by the trainer into play_on, a goal respawns everyone (the
+    thesis' training in the server). "match": episodes played as a regulation match is, from a
+    kick-off, with the referee's restarts and the match routines (set pieces, the goalie's
+    catch and guard, stamina pacing) that ``elevens robocup match`` plays with
+    (elevens.robocup.env.RoboCupConfig.episodes)."""
     keep_ball_in_play: bool = True
-    """Put the ball back at the lines instead of kick-ins (the thesis did this while shaping)."""
+    """In drills: put the ball back at the lines instead of kick-ins (the thesis did this
+    while shaping). Match episodes always have the referee's kick-ins."""
     rcssserver: str | None = None
     """The server binary (default: $ELEVENS_RCSSSERVER, then PATH)."""
     threads: bool = True
@@ -79,6 +86,13 @@ class ServerConfig:
     """The external opponent's team name."""
 
     def __post_init__(self) -> None:
+        from elevens.robocup.env import EPISODE_MODES
+
+        if self.episodes not in EPISODE_MODES:
+            raise ValueError(
+                f"server.episodes={self.episodes!r} is invalid: allowed values are "
+                f"{EPISODE_MODES}"
+            )
         if self.opponent_cmd is not None and not self.opponent_cmd.strip():
             raise ValueError(
                 f"server.opponent_cmd={self.opponent_cmd!r} is invalid: it must be None or a "
@@ -201,7 +215,8 @@ def _default_env_factory(config: RoboCupTrainConfig) -> EnvFactory:
                 episode_length=game.episode_length + 1,
                 spawn=game.spawn,
                 ball_spawn=game.ball_spawn,
-                keep_ball_in_play=server.keep_ball_in_play,
+                episodes=server.episodes,
+                keep_ball_in_play=server.keep_ball_in_play and server.episodes == "drill",
                 goal_reward=game.goal_reward,
                 ball_shaping_weight=game.ball_shaping_weight,
                 approach_shaping_weight=game.approach_shaping_weight,

@@ -258,3 +258,12 @@ def test_random_actions_always_give_a_valid_command() -> None:
             tree = parse_sexp(text)
             assert tree[0] in ("dash", "kick", "turn", "tackle")
     assert kinds == {"Dash", "Kick", "Turn", "Tackle", "NoOp"}
+
+
+def test_a_policy_s_action_count_names_its_mode() -> None:
+    from elevens.robocup.actions import ACTION_SIZES, action_mode
+
+    assert action_mode(2) == "sim" and action_mode(12) == "thesis12"
+    assert all(action_mode(size) == mode for mode, size in ACTION_SIZES.items())
+    with pytest.raises(ValueError, match=r"7 action values has no RoboCupEnv action mode"):
+        action_mode(7)

@@ -59,6 +59,8 @@ from elevens.robocup.protocol import (
 
 __all__ = [
     "ACTION_SIZE",
+    "ACTION_SIZES",
+    "action_mode",
     "ActionIndex",
     "ActionScaling",
     "action_to_command",
@@ -67,6 +69,20 @@ __all__ = [
 
 #: Length of the action vector.
 ACTION_SIZE = 12
+ACTION_SIZES = {"sim": 2, "thesis12": ACTION_SIZE}
+"""Values per player of each RoboCupEnv action mode: "sim" is the simulator's (move, rot),
+"thesis12" the thesis's table 4.1."""
+
+
+def action_mode(values: int) -> str:
+    """The action mode of a policy that gives ``values`` numbers per player."""
+    for mode, size in ACTION_SIZES.items():
+        if size == values:
+            return mode
+    raise ValueError(
+        f"a policy with {values!r} action values has no RoboCupEnv action mode: allowed are "
+        f"{ACTION_SIZES}"
+    )
 
 
 class ActionIndex(IntEnum):

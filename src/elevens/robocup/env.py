@@ -52,7 +52,7 @@ from elevens.env import physics
 from elevens.env.params import BALL_SPAWN_MODES, SPAWN_MODES, EnvParams
 from elevens.env.reward import reward_terms
 from elevens.env.state import GlobalState, Observation, State
-from elevens.robocup.actions import ACTION_SIZE, ActionScaling, actions_to_commands
+from elevens.robocup.actions import ACTION_SIZES, ActionScaling, actions_to_commands
 from elevens.robocup.client import Cycle, RoboCupClient, ServerDied
 from elevens.robocup.external import start_team, stop_team, wait_connected
 from elevens.robocup.observe import (
@@ -92,7 +92,7 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-ACTION_MODES = ("sim", "thesis12")
+ACTION_MODES = tuple(ACTION_SIZES)
 EPISODE_MODES = ("drill", "match")
 #: Server options of match episodes over the training ones: the referee drops a ball that
 #: nobody plays for 100 cycles in a set piece, as in a match (elevens.robocup.match).
@@ -214,7 +214,7 @@ class RoboCupConfig:
     @property
     def action_size(self) -> int:
         """Values per player action: 2 for "sim", 12 for "thesis12"."""
-        return 2 if self.action == "sim" else ACTION_SIZE
+        return ACTION_SIZES[self.action]
 
 
 def robocup_env_params(config: RoboCupConfig) -> EnvParams:

@@ -19,6 +19,7 @@ import jax
 import numpy as np
 
 from elevens.env.state import Observation
+from elevens.robocup.actions import ACTION_SIZES, action_mode
 from elevens.robocup.naive import RoboCupNaiveTeam
 
 ROBOCUP_HANDCRAFTED = ("naive", "random")
@@ -67,13 +68,12 @@ def load_robocup_team(
         naive = RoboCupNaiveTeam(action=action, turn_scale=turn_scale)
         return _Player("naive", lambda c, o, k: naive.act(None, c, o, k), naive.init_carry)
     if spec == "random":
-        size = 2 if action == "sim" else 12
-        rand = RandomRoboCupTeam(action_size=size)
+        rand = RandomRoboCupTeam(action_size=ACTION_SIZES[action])
         return _Player("random", lambda c, o, k: rand.act(None, c, o, k), rand.init_carry)
     from elevens.runs.teams import load_team
 
     team = load_team(spec, deterministic=deterministic)
-    wanted = "sim" if team.actions == 2 else "thesis12"
+    wanted = action_mode(team.actions)
     if action != wanted and not any_action:
         plays = "(move, rot) actions" if team.actions == 2 else "the thesis's 12-value action"
         raise ValueError(

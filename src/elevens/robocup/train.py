@@ -35,6 +35,7 @@ import numpy as np
 
 from elevens.env.state import GlobalState, Observation
 from elevens.play import NetworkActor, home_sides
+from elevens.robocup.actions import action_mode
 from elevens.runs.layout import RunLayout
 from elevens.train.config import (
     LearnerConfig,
@@ -220,7 +221,7 @@ def _default_env_factory(config: RoboCupTrainConfig) -> EnvFactory:
                 goal_reward=game.goal_reward,
                 ball_shaping_weight=game.ball_shaping_weight,
                 approach_shaping_weight=game.approach_shaping_weight,
-                action="thesis12" if config.learner.network.actions == 12 else "sim",
+                action=action_mode(config.learner.network.actions),
                 rcssserver=server.rcssserver,
                 opponent_cmd=server.opponent_cmd,
                 team_names=(

@@ -18,6 +18,8 @@ Probes:
   bus        the 8 players not within 4 m of the ball hold two rows across the own penalty area
   intercept  chasers run to where they can meet the rolling ball, not to where it is
   dribble12  naive12 with soft kicks (power 35: the ball rolls about 8 m ahead) towards the goal
+  combo12    dribble12 whose chasers run for the rolling ball's course (RoboCupNaiveTeam's
+             intercept): the two skills that moved the score, together
   longko     naive; the kick-off goes long to the opponents' wing instead of back to midfield
   tackle     naive; a player with the ball 0-1.7 m ahead (and out of kicking reach) tackles
              it towards the opponent goal
@@ -40,7 +42,9 @@ from elevens.robocup.actions import ActionIndex
 from elevens.robocup.naive import _COS, _SIN, _X, _Y, NaiveMemory, RoboCupNaiveTeam, _wrap
 from elevens.robocup.protocol import Kick, Tackle
 
-PROBES = ("naive12", "clear12", "screen", "bus", "intercept", "dribble12", "longko", "tackle")
+PROBES = (
+    "naive12", "clear12", "screen", "bus", "intercept", "dribble12", "combo12", "longko", "tackle"
+)
 OWN_GOAL = np.array([-52.5, 0.0])
 
 
@@ -190,6 +194,7 @@ def _player(probe: str, turn_scale: float) -> play._Player:
         "bus": (Block(action="sim", turn_scale=turn_scale, bus=True), 2),
         "intercept": (Intercept(action="sim", turn_scale=turn_scale), 2),
         "dribble12": (RoboCupNaiveTeam(action="thesis12", kick_power=35.0), 12),
+        "combo12": (RoboCupNaiveTeam(action="thesis12", kick_power=35.0, intercept=True), 12),
     }
     naive, actions = teams.get(probe, (RoboCupNaiveTeam(action="sim", turn_scale=turn_scale), 2))
 

@@ -166,3 +166,29 @@ def test_slows_down_next_to_the_ball() -> None:
     carry, first = team.act(None, carry, obs, None)
     _, second = team.act(None, carry, obs, None)  # stale: the ball has gone since the kick
     assert first[0, ActionIndex.KICK_SCORE] == 1.0 and second[0, ActionIndex.KICK_SCORE] < 1.0
+
+
+def test_intercept_runs_for_the_rolling_balls_course() -> None:
+    # The ball 10 m ahead rolls to the player's left at 1.5 m a cycle: the plain chaser dashes
+    # straight at it, the interceptor turns left to meet it on its course.
+    obs = team_obs([{"pos": (0.0, 0.0), "ball": (10.0, 0.0)}])
+    obs.self_features[0, S["ball_vel_left"]] = 1.5
+    chaser, interceptor = RoboCupNaiveTeam(), RoboCupNaiveTeam(intercept=True)
+    (dash,) = actions_to_commands(chaser.act(None, chaser.init_carry(1), obs, None)[1])
+    assert isinstance(dash, Dash) and dash.direction == pytest.approx(0.0, abs=1e-3)
+    (turn,) = actions_to_commands(interceptor.act(None, interceptor.init_carry(1), obs, None)[1])
+    assert isinstance(turn, Turn) and -80.0 < turn.moment < -20.0  # server: counter-clockwise
+    # Where it aims: the first point of the course it can reach at 0.85 m a cycle.
+    course = np.array([10.0, 0.0])
+    velocity = np.array([0.0, 1.5])
+    for cycle in range(1, 41):
+        course, velocity = course + velocity, velocity * 0.94
+        if np.hypot(*course) <= 0.85 * cycle + 1.085:
+            break
+    assert -turn.moment == pytest.approx(math.degrees(math.atan2(course[1], course[0])), abs=1e-3)
+    # A ball at rest: both chase it alike.
+    still = team_obs([{"pos": (0.0, 0.0), "ball": (10.0, math.radians(-5.0))}])
+    np.testing.assert_allclose(
+        chaser.act(None, chaser.init_carry(1), still, None)[1],
+        interceptor.act(None, interceptor.init_carry(1), still, None)[1], atol=1e-6,
+    )

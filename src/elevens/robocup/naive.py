@@ -100,6 +100,11 @@ class RoboCupNaiveTeam:
     two sees (about 1 m a step at full power)."""
     min_dash_power: float = 0.3
     """The softest approach (fraction of full power): enough to catch a slowly rolling ball."""
+    intercept: bool = False
+    """Chase where the rolling ball can first be met (its course, decaying by ``ball_decay``
+    a cycle, against ``intercept_speed``) instead of where it is."""
+    intercept_speed: float = 0.85
+    """Metres a chasing player covers a cycle, for ``intercept``."""
     search_turn: float = 60.0
     """Turn (degrees, clockwise) per step while nobody on the team knows where the ball is."""
     memory_steps: int = 20
@@ -162,6 +167,9 @@ class RoboCupNaiveTeam:
         to_ball = np.where(
             sees, bearing, np.arctan2(offset[:, 1], offset[:, 0]) - heading
         )
+        if self.intercept:
+            meet = self._meeting_points(ball, ball_velocity, position) - position
+            to_ball = np.arctan2(meet[:, 1], meet[:, 0]) - heading
         to_ball = _wrap(to_ball - turned)
         ball_distance = np.where(sees, distance, np.hypot(offset[:, 0], offset[:, 1]))
         goal = np.array([self.half_length, 0.0])
@@ -204,6 +212,24 @@ class RoboCupNaiveTeam:
             kicked=np.array([kind == _KICK for kind in kinds]) | (carry.kicked & ~fresh),
         )
         return carry, self._encode(kinds, angles, power)
+
+    def _meeting_points(
+        self, ball: np.ndarray, velocity: np.ndarray, position: np.ndarray
+    ) -> np.ndarray:
+        """Where each player can first reach the rolling ball (f64[n, 2], team frame): the
+        first cycle of its course within ``intercept_speed`` a cycle (plus kicking reach)."""
+        extent = np.array([self.half_length, self.half_width])
+        points = ball.copy()
+        found = np.zeros(len(ball), bool)
+        course, v = ball.copy(), velocity.copy()
+        for cycle in range(1, 41):
+            course, v = course + v, v * self.ball_decay
+            gap = np.hypot(*(course - position).T)
+            reach = ~found & (gap <= self.intercept_speed * cycle + self.kickable)
+            points[reach] = course[reach]
+            found |= reach
+        points[~found] = course[~found]
+        return np.clip(points, -extent, extent)
 
     def _turn_done(self, angles: np.ndarray) -> np.ndarray:
         """The turn (radians) a turn command for ``angles`` asks for, after clipping."""

@@ -1,0 +1,369 @@
+"""rcssserver 19's body model in JAX: what one dash, turn or kick does in one cycle.
+
+The simulator's own game (``physics``) is the thesis's: kinematic players and contact kicks.
+The official server's players have velocity and inertia, take one body command a cycle, and
+kick only a ball within reach, with a power that falls with the ball's distance and angle from
+the body. Probes in rcssserver (docs/results/robocup.md) point to ball skills as what separates
+an elevens team from helios-base; learning them by PPO needs a simulator whose kicks, dashes
+and turns follow the server's. These are those rules, transcribed from rcssserver 19.0.0
+(``src/player.cpp`` Player::kick and Player::turn, ``src/leg.cpp`` Leg::calcDashAccel,
+``src/object.cpp`` MPObject::_inc) for the default player type, without the server's noise
+(``player_rand``, ``ball_rand``, ``kick_rand``), and checked against a running server in
+``tests/env/test_rcss.py``.
+
+:class:`RcssSoccer` is the simulator's game with these bodies and the thesis's 12-value RoboCup
+action (table 4.1; ``elevens.robocup.actions`` sends the same values to the server), so a
+policy trained in it gives what an elevens team in rcssserver gives. Not modelled yet: player
+collisions, stamina, tackles, the goalie's catch, the referee (the ball bounces off the lines
+as in the simulator), see noise and the view cone's timing.
+
+Frames: the simulator's world frame (metres, y up, headings in radians counter-clockwise).
+Command arguments are the server's: powers 0..100 and directions in degrees, clockwise, relative
+to the body, as ``elevens.robocup.protocol`` sends them. Pure functions of arrays (any leading
+axes), jit- and vmap-safe.
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from elevens.env import physics
+from elevens.env.params import EnvParams
+from elevens.env.reward import reward_terms
+from elevens.env.soccer import Soccer, applied_actions
+from elevens.env.state import State, StepInfo
+
+__all__ = [
+    "ACTION_SIZE",
+    "Commands",
+    "RcssParams",
+    "RcssSoccer",
+    "decode_thesis12",
+    "rcss_field",
+    "advance",
+    "dash_acceleration",
+    "dash_stamina",
+    "kick_acceleration",
+    "kickable",
+    "turn",
+]
+
+
+class RcssParams(NamedTuple):
+    """rcssserver 19.0.0 defaults (server.conf and player type 0)."""
+
+    player_size: float = 0.3
+    ball_size: float = 0.085
+    kickable_margin: float = 0.7
+    kick_power_rate: float = 0.027
+    dash_power_rate: float = 0.006
+    inertia_moment: float = 5.0
+    player_decay: float = 0.4
+    player_speed_max: float = 1.05
+    player_accel_max: float = 1.0
+    ball_decay: float = 0.94
+    ball_speed_max: float = 3.0
+    ball_accel_max: float = 2.7
+    side_dash_rate: float = 0.4
+    back_dash_rate: float = 0.7
+    dash_angle_step: float = 1.0
+    max_power: float = 100.0
+    extra_stamina: float = 50.0
+
+    @property
+    def kickable_distance(self) -> float:
+        """Ball centre to player centre within which a kick works (1.085 m)."""
+        return self.player_size + self.ball_size + self.kickable_margin
+
+
+DEFAULT = RcssParams()
+
+
+def _unit(angle: jax.Array) -> jax.Array:
+    return jnp.stack([jnp.cos(angle), jnp.sin(angle)], axis=-1)
+
+
+def _world_angle(body: jax.Array, direction_deg: jax.Array) -> jax.Array:
+    """A command direction (degrees clockwise from the body) as a world angle (radians CCW)."""
+    return body - jnp.deg2rad(direction_deg)
+
+
+def dash_acceleration(
+    power: jax.Array,
+    direction_deg: jax.Array,
+    body: jax.Array,
+    effort: jax.Array | float = 1.0,
+    params: RcssParams = DEFAULT,
+) -> jax.Array:
+    """``(dash power direction)``'s acceleration f32[..., 2] (before the player's accel cap).
+
+    Power is clamped to [0, max_power] (v17+), the direction to [-180, 180] and rounded to
+    dash_angle_step; sideways and backwards dashes push less (side_dash_rate at +-90 degrees,
+    back_dash_rate at 180, linear between)."""
+    power = jnp.clip(power, 0.0, params.max_power)
+    direction = jnp.clip(direction_deg, -180.0, 180.0)
+    direction = params.dash_angle_step * jnp.round(direction / params.dash_angle_step)
+    off = jnp.abs(direction)
+    rate = jnp.where(
+        off > 90.0,
+        params.back_dash_rate
+        - (params.back_dash_rate - params.side_dash_rate) * (1.0 - (off - 90.0) / 90.0),
+        params.side_dash_rate + (1.0 - params.side_dash_rate) * (1.0 - off / 90.0),
+    )
+    magnitude = jnp.abs(effort * power * jnp.clip(rate, 0.0, 1.0) * params.dash_power_rate)
+    return magnitude[..., None] * _unit(_world_angle(body, direction))
+
+
+def dash_stamina(
+    power: jax.Array, stamina: jax.Array, params: RcssParams = DEFAULT
+) -> tuple[jax.Array, jax.Array]:
+    """(the power a dash can pay for, the stamina left): a dash costs its power, and a player
+    with less stamina (plus extra_stamina) dashes only as hard as it can pay."""
+    power = jnp.clip(power, 0.0, params.max_power)
+    paid = jnp.minimum(power, stamina + params.extra_stamina)
+    return paid, jnp.maximum(0.0, stamina - paid)
+
+
+def turn(
+    body: jax.Array,
+    moment_deg: jax.Array,
+    velocity: jax.Array,
+    params: RcssParams = DEFAULT,
+) -> jax.Array:
+    """The body after ``(turn moment)``: the moment (clamped to +-180, clockwise) divided by
+    ``1 + inertia_moment * speed``; radians CCW in (-pi, pi]."""
+    speed = jnp.sqrt(jnp.sum(velocity * velocity, axis=-1))
+    moment = jnp.clip(moment_deg, -180.0, 180.0)
+    turned = body - jnp.deg2rad(moment) / (1.0 + params.inertia_moment * speed)
+    return jnp.arctan2(jnp.sin(turned), jnp.cos(turned))
+
+
+def kickable(
+    player: jax.Array, ball: jax.Array, params: RcssParams = DEFAULT
+) -> jax.Array:
+    """Whether the ball is within kicking reach of the player (positions f32[..., 2])."""
+    offset = ball - player
+    return jnp.sqrt(jnp.sum(offset * offset, axis=-1)) <= params.kickable_distance
+
+
+def kick_acceleration(
+    power: jax.Array,
+    direction_deg: jax.Array,
+    body: jax.Array,
+    player: jax.Array,
+    ball: jax.Array,
+    params: RcssParams = DEFAULT,
+) -> jax.Array:
+    """``(kick power direction)``'s acceleration of the ball f32[..., 2] (before the ball's
+    accel cap); zero when the ball is out of reach.
+
+    The effective power is ``power * kick_power_rate * (1 - 0.25 * angle / 180 - 0.25 *
+    gap / kickable_margin)``: ``angle`` is the ball's angle off the body (degrees), ``gap`` the
+    distance between the ball's and the player's edges."""
+    power = jnp.clip(power, -params.max_power, params.max_power)
+    direction = jnp.clip(direction_deg, -180.0, 180.0)
+    offset = ball - player
+    distance = jnp.sqrt(jnp.sum(offset * offset, axis=-1))
+    off_body = jnp.arctan2(offset[..., 1], offset[..., 0]) - body
+    off_body = jnp.abs(jnp.arctan2(jnp.sin(off_body), jnp.cos(off_body)))
+    gap = distance - params.player_size - params.ball_size
+    rate = 1.0 - 0.25 * off_body / jnp.pi - 0.25 * gap / params.kickable_margin
+    effective = power * params.kick_power_rate * rate
+    reach = distance <= params.kickable_distance
+    accel = effective[..., None] * _unit(_world_angle(body, direction))
+    return jnp.where(reach[..., None], accel, 0.0)
+
+
+def advance(
+    position: jax.Array,
+    velocity: jax.Array,
+    acceleration: jax.Array,
+    accel_max: float,
+    speed_max: float,
+    decay: float,
+) -> tuple[jax.Array, jax.Array]:
+    """One cycle of an object's motion (MPObject::_inc, without noise, wind or posts): the
+    acceleration capped at ``accel_max`` is added to the velocity, which is capped at
+    ``speed_max``; the object moves by it; then the velocity decays. Returns (position,
+    velocity) as the next cycle's see_global reports them."""
+
+    def cap(vector: jax.Array, limit: float) -> jax.Array:
+        size = jnp.sqrt(jnp.sum(vector * vector, axis=-1, keepdims=True))
+        return vector * jnp.minimum(1.0, limit / jnp.maximum(size, 1e-12))
+
+    pushed = jnp.any(acceleration != 0.0, axis=-1, keepdims=True)
+    moved = cap(velocity + cap(acceleration, accel_max), speed_max)
+    velocity = jnp.where(pushed, moved, velocity)
+    return position + velocity, velocity * decay
+
+
+# ------------------------------------------------------------------ the 12-value action
+ACTION_SIZE = 12
+DASH, KICK, TURN, TACKLE, NOOP = range(5)
+
+
+class Commands(NamedTuple):
+    """Decoded 12-value actions, leading axes kept: ``kind`` (DASH, KICK, TURN, TACKLE, NOOP)
+    and each command's arguments as the server takes them (powers 0..100, degrees
+    clockwise)."""
+
+    kind: jax.Array
+    dash_power: jax.Array
+    dash_direction: jax.Array
+    kick_power: jax.Array
+    kick_direction: jax.Array
+    turn_moment: jax.Array
+
+
+def decode_thesis12(actions: jax.Array) -> Commands:
+    """f32[..., 12] in [-1, 1] -> Commands, as ``elevens.robocup.actions.actions_to_commands``
+    decodes them with rcssserver 19's ranges: the first largest of the five scores picks the
+    command; a negative dash power runs backwards (power |a| * 100, direction + 180)."""
+    a = jnp.clip(actions, -1.0, 1.0)
+    kind = jnp.argmax(a[..., :5], axis=-1)
+    power, direction = a[..., 5], a[..., 6] * 90.0
+    backwards = direction + 180.0
+    backwards = jnp.where(backwards > 180.0, backwards - 360.0, backwards)
+    return Commands(
+        kind=kind,
+        dash_power=jnp.abs(power) * 100.0,
+        dash_direction=jnp.where(power >= 0.0, direction, backwards),
+        kick_power=(a[..., 7] + 1.0) * 50.0,
+        kick_direction=a[..., 8] * 180.0,
+        turn_moment=a[..., 9] * 180.0,
+    )
+
+
+def command_summary(commands: Commands) -> jax.Array:
+    """The 2-value (move, rot) an elevens observation carries for a command, f32[..., 2]:
+    a dash's forward part of its power (power / 100 * cos direction), a turn's moment / 180,
+    0 otherwise (``elevens.robocup.env.command_summary``)."""
+    move = commands.dash_power / 100.0 * jnp.cos(jnp.deg2rad(commands.dash_direction))
+    rot = commands.turn_moment / 180.0
+    return jnp.stack(
+        [jnp.where(commands.kind == DASH, move, 0.0), jnp.where(commands.kind == TURN, rot, 0.0)],
+        axis=-1,
+    )
+
+
+def rcss_field(players_per_team: int = 11, **overrides: Any) -> EnvParams:
+    """EnvParams for the server's field (105 x 68, a 14.02 m goal) and ball (decay 0.94, at
+    most 3 m a cycle), for :class:`RcssSoccer`."""
+    values: dict[str, Any] = dict(
+        players_per_team=players_per_team,
+        field_length=105.0,
+        field_width=68.0,
+        goal_width=14.02,
+        ball_friction=DEFAULT.ball_decay,
+        ball_max_speed=DEFAULT.ball_speed_max,
+    )
+    values.update(overrides)
+    return EnvParams(**values)
+
+
+class RcssSoccer(Soccer):
+    """The simulator's game with rcssserver's bodies and the 12-value action (module docstring).
+
+    Actions are ``f32[2, n, 12]`` (team, player, thesis table 4.1); NaN counts as 0 and values
+    are clipped to [-1, 1]. ``State.velocities`` are the players' velocities as the server
+    reports them (after the cycle's decay), ``State.last_actions`` the 2-value summary of the
+    command each player gave. Goals, rewards, respawns, observations and episodes are the
+    simulator's (``Soccer``). Use :func:`rcss_field` for the server's field and ball.
+    """
+
+    def __init__(self, players_per_team: int = 11, body: RcssParams = DEFAULT):
+        super().__init__(players_per_team)
+        self.body = body
+
+    def default_params(self, **overrides: Any) -> EnvParams:
+        return rcss_field(self.players_per_team, **overrides)
+
+    def check_actions(self, actions: jax.Array) -> None:
+        """Raise ``ValueError`` unless actions are ``[2, n, 12]`` floats."""
+        expected = (2, self.players_per_team, ACTION_SIZE)
+        shape = tuple(getattr(actions, "shape", ()))
+        if shape != expected:
+            raise ValueError(
+                f"actions have shape {shape}, expected {expected} (team, player, the 12 values "
+                "of the thesis's table 4.1)"
+            )
+        if not jnp.issubdtype(actions.dtype, jnp.floating):
+            raise ValueError(f"actions have dtype {actions.dtype}, expected a float dtype")
+
+    def transition(
+        self, key: jax.Array, state: State, actions: jax.Array, params: EnvParams
+    ) -> tuple[State, jax.Array, jax.Array, StepInfo]:
+        """One server cycle: each player's one command, the bodies and the ball move, then
+        goals, rewards and respawns as in ``Soccer.transition``."""
+        self._check_params(params)
+        self.check_actions(actions)
+        b = self.body
+        flat = applied_actions(actions.reshape(self.num_players, ACTION_SIZE).astype(jnp.float32))
+        command = decode_thesis12(flat)
+        body = state.headings
+        headings = jnp.where(
+            command.kind == TURN,
+            turn(body, command.turn_moment, state.velocities, b),
+            body,
+        )
+        push = jnp.where(
+            (command.kind == DASH)[:, None],
+            dash_acceleration(command.dash_power, command.dash_direction, body, 1.0, b),
+            0.0,
+        )
+        positions, velocities = advance(
+            state.positions, state.velocities, push, b.player_accel_max, b.player_speed_max,
+            b.player_decay,
+        )
+        positions = physics.clamp_to_field(positions, params)
+        kicks = (command.kind == KICK) & kickable(state.positions, state.ball_position, b)
+        kick = jnp.where(
+            kicks[:, None],
+            kick_acceleration(
+                command.kick_power, command.kick_direction, body, state.positions,
+                state.ball_position[None, :], b,
+            ),
+            0.0,
+        ).sum(axis=0)
+        # The kicks' sum, capped, joins the ball's velocity; roll_ball then moves it, decays it
+        # (params.ball_friction) and scores or bounces it.
+        size = jnp.sqrt(jnp.sum(kick * kick))
+        kick = kick * jnp.minimum(1.0, b.ball_accel_max / jnp.maximum(size, 1e-12))
+        ball_velocity = jnp.where(
+            size > 0.0,
+            physics.cap_speed(state.ball_velocity + kick, b.ball_speed_max),
+            state.ball_velocity,
+        )
+        ball = physics.roll_ball(state.ball_position, ball_velocity, params)
+        terms = reward_terms(
+            ball.goals, ball.position, ball.velocity, velocities, state.ball_position, positions,
+            params,
+        )
+        scored = jnp.sum(ball.goals) > 0
+        respawn = physics.spawn(key, params)
+        step = state.step + 1
+        new_state = State(
+            positions=jnp.where(scored, respawn.positions, positions),
+            headings=jnp.where(scored, respawn.headings, headings),
+            velocities=jnp.where(scored, 0.0, velocities),
+            last_actions=command_summary(command),
+            start_positions=jnp.where(scored, respawn.positions, state.start_positions),
+            ball_position=jnp.where(scored, respawn.ball_position, ball.position),
+            ball_velocity=jnp.where(scored, 0.0, ball.velocity),
+            score=state.score + ball.goals,
+            step=step,
+        )
+        done = step >= params.episode_length
+        info = StepInfo(
+            goals=ball.goals,
+            kicks=kicks,
+            pushes=jnp.zeros_like(kicks),
+            goal_reward=terms.goal,
+            ball_shaping=terms.ball,
+            approach_shaping=terms.approach,
+            truncated=done,
+        )
+        return new_state, terms.total, done, info

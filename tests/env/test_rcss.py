@@ -1,0 +1,312 @@
+"""elevens.env.rcss: the server's body model, against hand-worked cases and a running rcssserver
+with its noise switched off."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from elevens.env import rcss
+from elevens.robocup.protocol import Dash, Kick, Turn
+from tests.robocup.conftest import needs_rcssserver
+
+P = rcss.RcssParams()
+NO_NOISE = {"server::player_rand": "0", "server::ball_rand": "0", "server::kick_rand": "0",
+            "server::wind_none": "true"}
+
+
+def test_a_dash_straight_ahead_pushes_by_power_times_the_dash_rate() -> None:
+    accel = rcss.dash_acceleration(jnp.float32(100.0), jnp.float32(0.0), jnp.float32(0.5))
+    np.testing.assert_allclose(accel, 0.6 * np.array([math.cos(0.5), math.sin(0.5)]), rtol=1e-6)
+    # Sideways (+90: clockwise, to the right) at side_dash_rate, backwards at back_dash_rate.
+    right = rcss.dash_acceleration(jnp.float32(100.0), jnp.float32(90.0), jnp.float32(0.0))
+    np.testing.assert_allclose(right, [0.0, -0.6 * 0.4], atol=1e-7)
+    back = rcss.dash_acceleration(jnp.float32(50.0), jnp.float32(180.0), jnp.float32(0.0))
+    np.testing.assert_allclose(back, [-0.3 * 0.7, 0.0], atol=1e-7)
+    # Negative power is clamped to 0 (protocol v17+).
+    np.testing.assert_allclose(rcss.dash_acceleration(jnp.float32(-50.0), 0.0, 0.0), [0, 0])
+
+
+def test_a_turn_is_slower_the_faster_the_player_moves() -> None:
+    at_rest = rcss.turn(jnp.float32(0.0), jnp.float32(60.0), jnp.zeros(2))
+    assert float(at_rest) == pytest.approx(-math.radians(60.0))  # clockwise
+    moving = rcss.turn(jnp.float32(0.0), jnp.float32(60.0), jnp.array([0.6, 0.0]))
+    assert float(moving) == pytest.approx(-math.radians(60.0) / (1.0 + 5.0 * 0.6))
+
+
+def test_a_kick_loses_power_with_the_balls_distance_and_angle() -> None:
+    player, body = jnp.zeros(2), jnp.float32(0.0)
+    touching = jnp.array([P.player_size + P.ball_size, 0.0])  # right in front, no gap
+    accel = rcss.kick_acceleration(jnp.float32(100.0), jnp.float32(0.0), body, player, touching)
+    np.testing.assert_allclose(accel, [2.7, 0.0], rtol=1e-6)  # the full 100 * 0.027
+    # At the edge of reach, 90 degrees off the body: 1 - 0.125 - 0.25 of the power.
+    edge = jnp.array([0.0, P.kickable_distance])
+    accel = rcss.kick_acceleration(jnp.float32(100.0), jnp.float32(-90.0), body, player, edge)
+    np.testing.assert_allclose(accel, [0.0, 2.7 * 0.625], atol=1e-6)
+    far = jnp.array([P.kickable_distance + 0.01, 0.0])
+    assert not bool(rcss.kickable(player, far))
+    np.testing.assert_allclose(rcss.kick_acceleration(100.0, 0.0, body, player, far), [0, 0])
+
+
+def test_advance_caps_the_acceleration_and_speed_then_decays() -> None:
+    position, velocity = rcss.advance(
+        jnp.zeros(2), jnp.array([2.0, 0.0]), jnp.array([2.7, 0.0]), P.ball_accel_max,
+        P.ball_speed_max, P.ball_decay,
+    )
+    np.testing.assert_allclose(position, [3.0, 0.0], rtol=1e-6)  # capped at 3 m a cycle
+    np.testing.assert_allclose(velocity, [3.0 * 0.94, 0.0], rtol=1e-6)
+    # No push: a fast object keeps its speed above the cap (the server caps only on a push).
+    position, velocity = rcss.advance(
+        jnp.zeros(2), jnp.array([1.2, 0.0]), jnp.zeros(2), 1.0, 1.05, 0.4
+    )
+    np.testing.assert_allclose(position, [1.2, 0.0]) and np.testing.assert_allclose(
+        velocity, [0.48, 0.0], rtol=1e-6
+    )
+
+
+def test_jit_vmap_and_eager_agree() -> None:
+    rng = np.random.default_rng(0)
+    power = rng.uniform(0, 100, 16).astype(np.float32)
+    direction = rng.uniform(-180, 180, 16).astype(np.float32)
+    body = rng.uniform(-3, 3, 16).astype(np.float32)
+    player = rng.uniform(-5, 5, (16, 2)).astype(np.float32)
+    ball = player + rng.uniform(-1, 1, (16, 2)).astype(np.float32)
+    batched = rcss.kick_acceleration(power, direction, body, player, ball)
+    mapped = jax.vmap(rcss.kick_acceleration)(power, direction, body, player, ball)
+    jitted = jax.jit(rcss.kick_acceleration)(power, direction, body, player, ball)
+    single = np.stack([rcss.kick_acceleration(*a) for a in zip(power, direction, body, player,
+                                                                ball, strict=True)])
+    for other in (mapped, jitted, single):
+        np.testing.assert_allclose(batched, other, rtol=1e-5, atol=1e-6)
+    dashes = jax.jit(rcss.dash_acceleration)(power, direction, body)
+    np.testing.assert_allclose(dashes, rcss.dash_acceleration(power, direction, body), rtol=1e-6)
+
+
+# ---------------------------------------------------------------- against rcssserver
+def _world(x: float, y: float) -> np.ndarray:
+    return np.array([x, -y])  # the server's y points down
+
+
+def _body(deg: float) -> float:
+    return -math.radians(deg)
+
+
+@needs_rcssserver
+def test_the_model_predicts_the_servers_next_cycle() -> None:
+    from elevens.robocup.env import RoboCupConfig, RoboCupEnv
+
+    config = RoboCupConfig(players_per_team=1, server_options=NO_NOISE)
+    with RoboCupEnv(config) as env:
+        env.reset(seed=0)
+        client: Any = env._client
+
+        def place(player: tuple[float, float], body: float, ball: tuple[float, float],
+                  ball_vel: tuple[float, float] = (0.0, 0.0)) -> Any:
+            positions = np.array([[player], [[-40.0, 30.0]]])
+            client.reset(positions, np.array([[body], [0.0]]), ball, ball_vel)
+            # The reset's own cycle may still show the old state: one more, then it is placed.
+            return client.step([None, None])
+
+        def after(command: Any) -> Any:
+            world = client.step([command, None]).world
+            me = next(p for p in world.players if p.team == config.team_names[0])
+            return world.ball, me
+
+        # Kicks: ball ahead-left, behind, at rest and rolling; directions both ways. A rolling
+        # ball has moved on when placed: the kick starts from what the server reports.
+        for ball_at, ball_vel, power, direction in [
+            ((10.6, 0.3), (0.0, 0.0), 100.0, 0.0),
+            ((10.3, -0.6), (0.0, 0.0), 60.0, 45.0),
+            ((9.3, 0.4), (0.0, 0.0), 80.0, -120.0),
+            ((10.0, 1.3), (0.0, -0.35), 40.0, 90.0),
+        ]:
+            start = place((10.0, 0.0), 20.0, ball_at, ball_vel).world.ball
+            ball, _ = after(Kick(power, direction))
+            origin, rolling = _world(start.x, start.y), _world(start.vx, start.vy)
+            assert bool(rcss.kickable(jnp.asarray(_world(10.0, 0.0)), jnp.asarray(origin)))
+            accel = rcss.kick_acceleration(
+                jnp.float32(power), jnp.float32(direction), jnp.float32(_body(20.0)),
+                jnp.asarray(_world(10.0, 0.0)), jnp.asarray(origin),
+            )
+            position, velocity = rcss.advance(
+                jnp.asarray(origin), jnp.asarray(rolling), accel,
+                P.ball_accel_max, P.ball_speed_max, P.ball_decay,
+            )
+            np.testing.assert_allclose(_world(ball.x, ball.y), position, atol=1e-3)
+            np.testing.assert_allclose(_world(ball.vx, ball.vy), velocity, atol=1e-3)
+        # Dashes: forward, sideways and backwards, then a second dash on the carried velocity.
+        for power, direction in [(100.0, 0.0), (100.0, 90.0), (70.0, -150.0)]:
+            place((0.0, 10.0), -30.0, (30.0, 30.0))
+            position, velocity = jnp.asarray(_world(0.0, 10.0)), jnp.zeros(2)
+            for _ in range(2):
+                _, me = after(Dash(power, direction))
+                accel = rcss.dash_acceleration(
+                    jnp.float32(power), jnp.float32(direction), jnp.float32(_body(-30.0))
+                )
+                position, velocity = rcss.advance(
+                    position, velocity, accel, P.player_accel_max, P.player_speed_max,
+                    P.player_decay,
+                )
+                np.testing.assert_allclose(_world(me.x, me.y), position, atol=1e-3)
+                np.testing.assert_allclose(_world(me.vx, me.vy), velocity, atol=1e-3)
+        # A turn while moving: the dash's velocity slows it.
+        place((0.0, 10.0), 0.0, (30.0, 30.0))
+        _, me = after(Dash(100.0, 0.0))
+        speed_then = np.array(_world(me.vx, me.vy))
+        _, me = after(Turn(90.0))
+        body = rcss.turn(jnp.float32(_body(0.0)), jnp.float32(90.0), jnp.asarray(speed_then))
+        assert _body(me.body) == pytest.approx(float(body), abs=math.radians(1.0))
+        assert abs(me.body) < 45.0  # less than half the 90 asked for
+
+
+# ---------------------------------------------------------------- the 12-value game
+def _action(kind: int, **values: float) -> np.ndarray:
+    a = np.full(12, -1.0, np.float32)
+    a[5:] = 0.0
+    a[kind] = 1.0
+    for index, value in values.items():
+        a[int(index[1:])] = value
+    return a
+
+
+def test_decoding_agrees_with_the_servers_action_mapping() -> None:
+    from elevens.robocup.actions import ActionScaling, actions_to_commands
+    from elevens.robocup.env import command_summary
+    from elevens.robocup.protocol import NoOp, Tackle
+
+    rng = np.random.default_rng(3)
+    actions = rng.uniform(-1.2, 1.2, (400, 12)).astype(np.float32)
+    decoded = rcss.decode_thesis12(jnp.asarray(actions))
+    summary = np.asarray(rcss.command_summary(decoded))
+    kinds = {Dash: rcss.DASH, Kick: rcss.KICK, Turn: rcss.TURN, Tackle: rcss.TACKLE,
+             NoOp: rcss.NOOP}
+    for i, command in enumerate(actions_to_commands(actions)):
+        assert int(decoded.kind[i]) == kinds[type(command)]
+        if isinstance(command, Dash):
+            assert float(decoded.dash_power[i]) == pytest.approx(command.power, abs=1e-3)
+            assert float(decoded.dash_direction[i]) == pytest.approx(command.direction, abs=1e-3)
+        if isinstance(command, Kick):
+            assert float(decoded.kick_power[i]) == pytest.approx(command.power, abs=1e-3)
+            assert float(decoded.kick_direction[i]) == pytest.approx(command.direction, abs=1e-3)
+        if isinstance(command, Turn):
+            assert float(decoded.turn_moment[i]) == pytest.approx(command.moment, abs=1e-3)
+        np.testing.assert_allclose(summary[i], command_summary(command, ActionScaling()),
+                                   atol=1e-5)
+
+
+def test_rcss_soccer_moves_bodies_and_ball_by_the_servers_rules() -> None:
+    from tests.env.helpers import build_state
+
+    env = rcss.RcssSoccer(1)
+    params = env.default_params()
+    # Player 0 at (0, 0) facing +x with the ball 0.6 m ahead; player 1 far away, facing -x.
+    state = build_state(params, positions=np.array([[0.0, 0.0], [30.0, 20.0]]),
+                        headings=np.array([0.0, math.pi]), ball_position=(0.6, 0.0))
+    kick = _action(rcss.KICK, a7=1.0, a8=-0.25)  # full power, 45 degrees to the left
+    dash = _action(rcss.DASH, a5=1.0)
+    actions = jnp.asarray(np.stack([[kick], [dash]]))
+    after, *_ = env.step(jax.random.key(0), state, actions, params)
+    rate = 1.0 - 0.25 * (0.6 - 0.385) / 0.7
+    expected_ball = 2.7 * rate * np.array([math.cos(math.pi / 4), math.sin(math.pi / 4)])
+    np.testing.assert_allclose(after.ball_position, [0.6, 0.0] + expected_ball, atol=1e-5)
+    np.testing.assert_allclose(after.ball_velocity, expected_ball * 0.94, atol=1e-5)
+    # Player 1 dashed along its heading (-x) at 0.6 a cycle, then its velocity decayed.
+    np.testing.assert_allclose(after.positions[1], [29.4, 20.0], atol=1e-5)
+    np.testing.assert_allclose(after.velocities[1], [-0.24, 0.0], atol=1e-6)
+    np.testing.assert_allclose(after.last_actions, [[0.0, 0.0], [1.0, 0.0]], atol=1e-6)
+    assert float(jnp.abs(after.velocities[0]).sum()) == 0.0
+    np.testing.assert_array_equal(after.headings, state.headings)
+    # Out of reach, a kick does nothing; a turn turns (clockwise +), slower when moving.
+    far_ball = build_state(params, positions=np.array([[0.0, 0.0], [30.0, 20.0]]),
+                           headings=np.array([0.0, math.pi]), ball_position=(2.0, 0.0))
+    turn_right = _action(rcss.TURN, a9=0.5)
+    out, *_ = env.step(jax.random.key(0), far_ball,
+                       jnp.asarray(np.stack([[kick], [turn_right]])), params)
+    np.testing.assert_allclose(out.ball_position, [2.0, 0.0])
+    assert float(out.headings[1]) == pytest.approx(math.pi - math.radians(90.0))  # at rest
+    with pytest.raises(ValueError, match=r"expected \(2, 1, 12\)"):
+        env.step(jax.random.key(0), state, jnp.zeros((2, 1, 2)), params)
+
+
+def test_rcss_soccer_jit_vmap_and_eager_agree_and_a_seed_repeats() -> None:
+    env = rcss.RcssSoccer(2)
+    params = env.default_params(episode_length=40)
+    keys = jax.random.split(jax.random.key(5), 3)
+    states, _ = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
+    actions = jax.random.uniform(jax.random.key(6), (3, 2, 2, 12), minval=-1.0, maxval=1.0)
+    step = jax.vmap(env.transition, in_axes=(0, 0, 0, None))
+    batched, rewards, _, _ = step(keys, states, actions, params)
+    jitted, jit_rewards, _, _ = jax.jit(step)(keys, states, actions, params)
+    for g in range(3):
+        state = jax.tree.map(lambda leaf, g=g: leaf[g], states)
+        one, one_rewards, _, _ = env.transition(keys[g], state, actions[g], params)
+        for a, b in zip(jax.tree.leaves(one), jax.tree.leaves(batched), strict=True):
+            np.testing.assert_allclose(a, b[g], rtol=1e-5, atol=1e-5)
+        np.testing.assert_allclose(one_rewards, rewards[g], rtol=1e-5, atol=1e-6)
+    for a, b in zip(jax.tree.leaves(batched), jax.tree.leaves(jitted), strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-5)
+    again, *_ = jax.jit(step)(keys, states, actions, params)
+    for a, b in zip(jax.tree.leaves(again), jax.tree.leaves(jitted), strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_a_kick_into_the_goal_scores_and_respawns() -> None:
+    from tests.env.helpers import build_state
+
+    env = rcss.RcssSoccer(1)
+    params = env.default_params(ball_shaping_weight=0.0, approach_shaping_weight=0.0)
+    state = build_state(params, positions=np.array([[50.0, 0.0], [-30.0, 20.0]]),
+                        headings=np.array([0.0, math.pi]), ball_position=(50.5, 0.0))
+    shot = _action(rcss.KICK, a7=1.0)
+    after, _, rewards, _, info = env.step(
+        jax.random.key(1), state, jnp.asarray(np.stack([[shot], [_action(rcss.NOOP)]])), params
+    )
+    assert info.goals.tolist() == [1, 0] and after.score.tolist() == [1, 0]
+    np.testing.assert_allclose(rewards, [[1.0], [-1.0]])
+    assert abs(float(after.ball_position[0])) < 52.5 and float(after.positions[0, 0]) < 0.0
+
+
+@needs_rcssserver
+def test_rcss_soccer_follows_the_server_for_a_sequence_of_commands() -> None:
+    """Ten cycles of one player's dashes, turns and kicks, played in the server (noise off)
+    and in RcssSoccer from the same start: the same path for the player and the ball."""
+    from elevens.robocup.actions import actions_to_commands
+    from elevens.robocup.env import RoboCupConfig, RoboCupEnv
+    from tests.env.helpers import build_state
+
+    script = [
+        _action(rcss.DASH, a5=1.0), _action(rcss.DASH, a5=1.0, a6=0.5),
+        _action(rcss.TURN, a9=-0.3), _action(rcss.DASH, a5=0.8),
+        _action(rcss.KICK, a7=0.4, a8=0.1), _action(rcss.DASH, a5=-0.6),
+        _action(rcss.NOOP), _action(rcss.KICK, a7=1.0, a8=-0.5),
+        _action(rcss.TURN, a9=0.8), _action(rcss.DASH, a5=1.0, a6=-1.0),
+    ]
+    env = rcss.RcssSoccer(1)
+    params = env.default_params()
+    # The ball passes within reach but never touches the player: collisions are not modelled.
+    start_player, start_ball = np.array([0.0, -10.0]), np.array([2.2, -8.8])
+    state = build_state(params, positions=np.array([start_player, [-40.0, -30.0]]),
+                        headings=np.array([0.3, 0.0]), ball_position=tuple(start_ball))
+    config = RoboCupConfig(players_per_team=1, server_options=NO_NOISE)
+    with RoboCupEnv(config) as server_env:
+        server_env.reset(seed=0)
+        client: Any = server_env._client
+        client.reset(np.array([[_world(*start_player)], [[40.0, 30.0]]]),
+                     np.array([[-math.degrees(0.3)], [180.0]]), tuple(_world(*start_ball)))
+        placed = client.step([None, None]).world  # the reset's own cycle may show the old state
+        assert _world(placed.ball.x, placed.ball.y) == pytest.approx(start_ball, abs=1e-3)
+        for cycle, action in enumerate(script):
+            (command,) = actions_to_commands(action[None])
+            world = client.step([command, None]).world
+            state, *_ = env.step(jax.random.key(cycle), state,
+                                 jnp.asarray(np.stack([[action], [_action(rcss.NOOP)]])), params)
+            me = next(p for p in world.players if p.team == config.team_names[0])
+            np.testing.assert_allclose(_world(me.x, me.y), state.positions[0], atol=2e-3)
+            np.testing.assert_allclose(_world(world.ball.x, world.ball.y), state.ball_position,
+                                       atol=2e-3)
+            assert _body(me.body) == pytest.approx(float(state.headings[0]), abs=0.02)

@@ -434,7 +434,7 @@ def test_the_action_count_is_2_or_12_and_training_takes_2() -> None:
     with pytest.raises(ValueError, match=r"network.actions=5 is invalid: it must be 2 .* or 12"):
         make_config("quickstart", **{"network.actions": 5})
     twelve = make_config("quickstart", **{"network.actions": 12})
-    with pytest.raises(ValueError, match="network.actions=12: the simulator takes the 2-value"):
+    with pytest.raises(ValueError, match="network.actions=12: the simulator's game takes the"):
         make_learner(twelve.learner)
     # A config saved before the field existed reads as 2, without a warning about it.
     saved = make_config("quickstart").to_dict()
@@ -444,3 +444,29 @@ def test_the_action_count_is_2_or_12_and_training_takes_2() -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert TrainConfig.from_saved(saved, "x.json").learner.network.actions == 2
+
+
+def test_rcss_physics_takes_the_12_value_action_and_no_handcrafted_teams() -> None:
+    from elevens.train.config import make_config
+    from elevens.train.learner import make_learner
+
+    with pytest.raises(ValueError, match=r"env.physics='newton' is invalid: allowed values are"):
+        make_config("quickstart", **{"env.physics": "newton"})
+    two = make_config("quickstart", **{"env.physics": "rcss", "run.eval_teams": (),
+                                       "run.write_gif": False})
+    with pytest.raises(ValueError, match="env.physics='rcss' takes the thesis's 12-value"):
+        make_learner(two.learner)
+    with pytest.raises(ValueError, match=r"run.eval_teams=\('naive',\) is invalid with env"):
+        make_config("quickstart", **{"env.physics": "rcss", "network.actions": 12,
+                                     "run.eval_teams": ("naive",), "run.write_gif": False})
+    with pytest.raises(ValueError, match="run.write_gif=True is invalid with env.physics"):
+        make_config("quickstart", **{"env.physics": "rcss", "network.actions": 12,
+                                     "run.eval_teams": ()})
+    # A config saved before the field existed reads as the simulator's game, silently.
+    saved = make_config("quickstart").to_dict()
+    del saved["learner"]["env"]["physics"]
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert TrainConfig.from_saved(saved, "x.json").learner.env.physics == "thesis"

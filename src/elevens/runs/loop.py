@@ -354,11 +354,12 @@ class _Run:
     def evaluate_baseline(self) -> None:
         """Iteration 0's evaluation: the learning curve starts at the starting networks."""
         run = self.config.run
-        self.bar.note(
-            f"evaluating the {'starting' if run.init_from else 'untrained'} networks "
-            f"against {', '.join(run.eval_teams)} ({run.eval_games} games each; the "
-            "first match compiles)"
-        )
+        if run.eval_teams:
+            self.bar.note(
+                f"evaluating the {'starting' if run.init_from else 'untrained'} networks "
+                f"against {', '.join(run.eval_teams)} ({run.eval_games} games each; the "
+                "first match compiles)"
+            )
         self.evaluate()
 
     def log_rows(

@@ -96,6 +96,14 @@ class EnvConfig:
     mix_shares: tuple[float, ...] = ()
     """The share of the iterations of each game of ``mix``, in its order; the main game has the
     rest. E.g. ``mix=('2v2',), mix_shares=(0.5,)``: every other chunk is 2 v 2."""
+    physics: str = "thesis"
+    """"thesis": the simulator's game (``elevens.env.soccer``, the 2-value (move, rot) action).
+    "rcss": rcssserver's bodies and the thesis's 12-value RoboCup action
+    (``elevens.env.rcss.RcssSoccer``; with ``network.actions 12``), so the trained team plays
+    ``elevens robocup match`` as it trained. Give it the server's field and ball as well
+    (``--env.field-length 105 --env.field-width 68 --env.goal-width 14.02
+    --env.ball-friction 0.94 --env.ball-max-speed 3``). Its games have no scripted teams:
+    evaluate in rcssserver, not against the simulator's handcrafted teams."""
 
     @property
     def players_per_team(self) -> int:
@@ -110,7 +118,8 @@ class EnvConfig:
 NETWORK_ACTIONS = (2, 12)
 # Fields added after config version 2 whose default is all that older versions knew: filled
 # without a warning.
-_SILENT_DEFAULTS = ("learner.network.actions",)
+_SILENT_DEFAULTS = ("learner.network.actions", "learner.env.physics")
+PHYSICS = ("thesis", "rcss")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -724,6 +733,17 @@ def validate(config: TrainConfig) -> None:
     )
     _validate_run(config.run)
     validate_learner(config.learner)
+    if config.learner.env.physics == "rcss":
+        # Both play the simulator's handcrafted teams, whose players give 2-value actions.
+        for flag, value in (("run.eval_teams", config.run.eval_teams),
+                            ("run.write_gif", config.run.write_gif)):
+            _require(
+                not value,
+                f"{flag}={value!r} is invalid with env.physics='rcss': it plays the "
+                "simulator's handcrafted teams, which give the 2-value action; leave it out "
+                "(--run.eval-teams with no team, --run.no-write-gif) and evaluate the team in "
+                "rcssserver (elevens robocup match)",
+            )
 
 
 def validate_learner(learner: LearnerConfig) -> None:
@@ -751,6 +771,10 @@ def _validate_env(env: EnvConfig) -> None:
     )
     _int_at_least("env.shaping_window", env.shaping_window, 1)
     _in_unit_interval("env.shaping_threshold", env.shaping_threshold)
+    _require(
+        env.physics in PHYSICS,
+        f"env.physics={env.physics!r} is invalid: allowed values are {PHYSICS}",
+    )
 
 
 def _players_of(scenario: str) -> int:

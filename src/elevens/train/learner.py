@@ -38,6 +38,7 @@ from flax import struct
 from jax.sharding import Mesh
 
 from elevens.env.params import EnvParams
+from elevens.env.rcss import RcssSoccer
 from elevens.env.soccer import Soccer
 from elevens.env.state import GlobalState, Observation
 from elevens.nets import capacity
@@ -441,11 +442,22 @@ def make_learner(
     resume, a longer run, another run directory) reuses the compiled chunk.
     """
     validate_learner(config)
-    if config.network.actions != 2 and not plays_rcssserver:
+    rcss = config.env.physics == "rcss"
+    if config.network.actions != 2 and not (plays_rcssserver or rcss):
         raise ValueError(
-            f"network.actions={config.network.actions}: the simulator takes the 2-value "
-            "(move, rot) action; a 12-value policy plays and trains in rcssserver only "
-            "(elevens robocup match, elevens robocup train)"
+            f"network.actions={config.network.actions}: the simulator's game takes the 2-value "
+            "(move, rot) action; a 12-value policy trains in rcssserver (elevens robocup "
+            "train) or in the simulator with the server's bodies (--env.physics rcss)"
+        )
+    if rcss and len(opponent_mix(config)) > 1:
+        raise ValueError(
+            f"opponent.mix={config.opponent.mix!r} is invalid with env.physics='rcss': the "
+            "fixed teams give the 2-value action; train by self-play"
+        )
+    if rcss and config.network.actions != 12:
+        raise ValueError(
+            f"env.physics='rcss' takes the thesis's 12-value action: set network.actions=12, "
+            f"not {config.network.actions}"
         )
     if load_team is None and len(opponent_mix(config)) > 1:
         raise ValueError(
@@ -489,7 +501,7 @@ def make_setup(
     loss = functools.partial(ppo.sequence_loss, policy, critic, hp)
     return Setup(
         config=config,
-        env=Soccer(n),
+        env=RcssSoccer(n) if config.env.physics == "rcss" else Soccer(n),
         env_params=env_params,
         policy=policy,
         critic=critic,

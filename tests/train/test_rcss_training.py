@@ -1,0 +1,53 @@
+"""Training with rcssserver's bodies (env.physics rcss, elevens.env.rcss.RcssSoccer): the
+compiled trainer runs the 12-value game, and its team plays rcssserver's action mode."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import jax
+import numpy as np
+
+from elevens.runs.logging import read_metrics_csv
+from elevens.runs.loop import train
+from tests.train.test_trainer import tiny_config
+
+RCSS = {
+    "env.physics": "rcss",
+    "network.actions": 12,
+    "env.ball_friction": 0.94,
+    "env.ball_max_speed": 3.0,
+    "run.eval_teams": (),
+    "run.write_gif": False,
+}
+
+
+def test_a_run_with_the_servers_bodies_trains_a_team_for_rcssserver(tmp_path: Path) -> None:
+    from elevens.robocup.env import RoboCupConfig, robocup_env_params
+    from elevens.robocup.observe import PerceptMemory
+    from elevens.robocup.play import load_robocup_team
+
+    config = tiny_config(tmp_path, **{**RCSS, "run.iterations": 4})
+    result = train(config, progress=False)
+    assert result.checkpoint is not None and result.checkpoint.is_dir()
+    curves = read_metrics_csv(tmp_path)
+    losses = curves["train/loss"].values
+    assert len(losses) == 4 and all(math.isfinite(v) for v in losses)
+    assert curves["time/env_steps"].values[-1] == 4 * 64 * 64
+    # The run is a 12-value team: rcssserver's thesis12 mode plays it, the "sim" rule refuses it.
+    player = load_robocup_team(str(tmp_path), "thesis12")
+    assert player.actions == 12
+    params = robocup_env_params(RoboCupConfig(players_per_team=1))
+    memory = PerceptMemory(params, ("elevens_l", "elevens_r"))
+    memory.reset(np.zeros((2, 1, 2)), np.zeros((2, 1)))
+    obs = jax.tree.map(lambda leaf: leaf[0], memory.observation(0, np.zeros((2, 1, 2)),
+                                                                np.zeros((2, 1, 2))))
+    _, actions = player.act(player.init_carry(1), obs, jax.random.key(0))
+    assert np.asarray(actions).shape == (1, 12)
+    try:
+        load_robocup_team(str(tmp_path), "sim")
+    except ValueError as error:
+        assert "12-value action" in str(error)
+    else:
+        raise AssertionError("a 12-value team loaded for the 'sim' action mode")

@@ -2,7 +2,10 @@
 property tests draw the same examples on every run unless asked to explore."""
 
 import os
+import shutil
+import tempfile
 
+import jax
 import pytest
 from hypothesis import settings
 
@@ -12,6 +15,22 @@ from hypothesis import settings
 settings.register_profile("default", derandomize=True)
 settings.register_profile("explore", derandomize=False)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
+
+
+# One compile per computation in a test session: many tests build the same jitted function
+# (a fresh closure each time, e.g. the update step of every `imitate` or training run), which
+# jax's in-memory cache cannot share. jax's persistent cache keys on the lowered program, so a
+# second build with the same shapes loads the executable instead of compiling it again. The
+# directory is new for each session and removed at its end: no run reuses another's compiles.
+# Only compiles over 0.1 s are stored (the op-by-op kernels of eager code are not worth a file).
+_COMPILE_CACHE = tempfile.mkdtemp(prefix="elevens-test-compiles-")
+jax.config.update("jax_compilation_cache_dir", _COMPILE_CACHE)
+jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.1)
+jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+
+
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    shutil.rmtree(_COMPILE_CACHE, ignore_errors=True)
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:

@@ -6,6 +6,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 from pathlib import Path
 
@@ -223,8 +224,11 @@ def test_a_team_that_did_not_play_is_named():
         demonstrations(game, "CYRUS", PARAMS)
 
 
+@functools.cache
 def _synthetic(key: int, steps: int = 64, n: int = 3) -> Demonstrations:
-    """Players that dash forward when the ball is to their left and back when to their right."""
+    """Players that dash forward when the ball is to their left and back when to their right.
+
+    Built once per key (eager observes, seconds) and shared by the tests, read-only."""
     params = robocup_env_params(RoboCupConfig(players_per_team=n))
     rng = np.random.default_rng(key)
     obs_list = []
@@ -236,12 +240,15 @@ def _synthetic(key: int, steps: int = 64, n: int = 3) -> Demonstrations:
     move = np.where(sin_bearing > 0, 0.8, -0.8).astype(np.float32)
     actions = np.stack([move, np.zeros_like(move)], axis=-1)
     valid = obs.self_features[..., SELF_FEATURES.index("ball_visible")] > 0
-    return Demonstrations(
+    demo = Demonstrations(
         observations=Observation(
             self_features=obs.self_features, entities=obs.entities, entity_mask=obs.entity_mask
         ),
         actions=actions, valid=valid, reset=np.zeros(steps, bool),
     )
+    for leaf in (*jax.tree.leaves(demo.observations), demo.actions, demo.valid, demo.reset):
+        leaf.setflags(write=False)
+    return demo
 
 
 def observe_lib_state(rng: np.random.Generator, n: int):

@@ -310,3 +310,61 @@ def test_rcss_soccer_follows_the_server_for_a_sequence_of_commands() -> None:
             np.testing.assert_allclose(_world(world.ball.x, world.ball.y), state.ball_position,
                                        atol=2e-3)
             assert _body(me.body) == pytest.approx(float(state.headings[0]), abs=0.02)
+
+
+def test_collisions_push_overlapping_bodies_apart_and_bounce_them() -> None:
+    positions = jnp.array([[0.0, 0.0], [0.5, 0.0], [10.0, 0.0]])
+    velocities = jnp.array([[0.5, 0.0], [-0.2, 0.0], [0.3, 0.0]])
+    ball, ball_velocity = jnp.array([10.2, 0.0]), jnp.array([-1.0, 0.0])
+    moved, bounced, ball_at, ball_bounced = rcss.collide(positions, velocities, ball,
+                                                         ball_velocity)
+    # Players 0 and 1 (0.5 m apart, 0.6 needed) move apart about their midpoint.
+    np.testing.assert_allclose(moved[0], [0.25 - 0.3, 0.0], atol=1e-4)
+    np.testing.assert_allclose(moved[1], [0.25 + 0.3, 0.0], atol=1e-4)
+    # Player 2 and the ball (0.2 m apart, 0.385 needed) likewise.
+    np.testing.assert_allclose(moved[2], [10.1 - 0.1925, 0.0], atol=1e-4)
+    np.testing.assert_allclose(ball_at, [10.1 + 0.1925, 0.0], atol=1e-4)
+    np.testing.assert_allclose(bounced, -0.1 * velocities, atol=1e-7)
+    np.testing.assert_allclose(ball_bounced, [0.1, 0.0], atol=1e-7)
+    # Nobody overlapping: nothing changes.
+    apart = positions.at[1].set([5.0, 5.0]).at[2].set([20.0, 0.0])
+    out = rcss.collide(apart, velocities, ball, ball_velocity)
+    for got, before in zip(out, (apart, velocities, ball, ball_velocity), strict=True):
+        np.testing.assert_array_equal(got, before)
+
+
+@needs_rcssserver
+def test_a_player_that_runs_into_the_ball_bounces_as_in_the_server() -> None:
+    from elevens.robocup.actions import actions_to_commands
+    from elevens.robocup.env import RoboCupConfig, RoboCupEnv
+    from tests.env.helpers import build_state
+
+    env = rcss.RcssSoccer(1)
+    params = env.default_params()
+    start_player, start_ball = np.array([0.0, -10.0]), np.array([0.8, -10.05])
+    config = RoboCupConfig(players_per_team=1, server_options=NO_NOISE)
+    with RoboCupEnv(config) as server_env:
+        server_env.reset(seed=0)
+        client: Any = server_env._client
+        client.reset(np.array([[_world(*start_player)], [[40.0, 30.0]]]),
+                     np.array([[0.0], [180.0]]), tuple(_world(*start_ball)))
+        client.step([None, None])
+        state = build_state(params, positions=np.array([start_player, [-40.0, -30.0]]),
+                            headings=np.array([0.0, 0.0]), ball_position=tuple(start_ball))
+        dash = _action(rcss.DASH, a5=1.0)
+        for cycle in range(3):
+            (command,) = actions_to_commands(dash[None])
+            world = client.step([command, None]).world
+            state, *_ = env.step(jax.random.key(cycle), state,
+                                 jnp.asarray(np.stack([[dash], [_action(rcss.NOOP)]])), params)
+            me = next(p for p in world.players if p.team == config.team_names[0])
+            np.testing.assert_allclose(_world(me.x, me.y), state.positions[0], atol=2e-3)
+            np.testing.assert_allclose(_world(me.vx, me.vy), state.velocities[0], atol=2e-3)
+            np.testing.assert_allclose(_world(world.ball.x, world.ball.y), state.ball_position,
+                                       atol=2e-3)
+            if cycle == 0:
+                # A free dash would have carried the player 0.6 m, onto the ball (0.8 m
+                # ahead): it stopped touching it, and bounced back.
+                gap = float(jnp.linalg.norm(state.ball_position - state.positions[0]))
+                assert gap == pytest.approx(P.ball_size + P.player_size, abs=1e-3)
+                assert float(state.velocities[0, 0]) < 0.0

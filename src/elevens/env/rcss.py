@@ -13,9 +13,10 @@ and turns follow the server's. These are those rules, transcribed from rcssserve
 
 :class:`RcssSoccer` is the simulator's game with these bodies and the thesis's 12-value RoboCup
 action (table 4.1; ``elevens.robocup.actions`` sends the same values to the server), so a
-policy trained in it gives what an elevens team in rcssserver gives. Not modelled yet: player
-collisions, stamina, tackles, the goalie's catch, the referee (the ball bounces off the lines
-as in the simulator), see noise and the view cone's timing.
+policy trained in it gives what an elevens team in rcssserver gives. Not modelled yet: stamina,
+tackles, the goalie's catch, the referee (the ball bounces off the lines as in the simulator),
+see noise and the view cone's timing; collisions are resolved in one pass where the server
+repeats it while anything still overlaps.
 
 Frames: the simulator's world frame (metres, y up, headings in radians counter-clockwise).
 Command arguments are the server's: powers 0..100 and directions in degrees, clockwise, relative
@@ -46,6 +47,7 @@ __all__ = [
     "advance",
     "dash_acceleration",
     "dash_stamina",
+    "collide",
     "kick_acceleration",
     "kickable",
     "turn",
@@ -200,6 +202,52 @@ def advance(
     return position + velocity, velocity * decay
 
 
+def collide(
+    positions: jax.Array,
+    velocities: jax.Array,
+    ball: jax.Array,
+    ball_velocity: jax.Array,
+    params: RcssParams = DEFAULT,
+) -> tuple[jax.Array, jax.Array, jax.Array, jax.Array]:
+    """The server's collisions after a cycle's motion (Stadium::collisions in play_on): every
+    overlapping pair (ball and player: closer than ball_size + player_size; two players:
+    closer than twice player_size) is pushed apart about its midpoint to just touching, an
+    object in several pairs goes to the mean of its places, and each object that collided
+    bounces back at a tenth of its velocity. One pass (the server repeats it while anything
+    still overlaps, at most ten times). positions/velocities f32[m, 2], ball f32[2] -> the
+    same four, moved."""
+    eps = 1e-5
+
+    def apart(a: jax.Array, b: jax.Array, reach: float) -> tuple[jax.Array, jax.Array]:
+        offset = a - b
+        distance = jnp.sqrt(jnp.sum(offset * offset, axis=-1, keepdims=True))
+        unit = jnp.where(
+            distance > 0.0, offset / jnp.maximum(distance, 1e-12), jnp.array([1.0, 0.0])
+        )
+        mid = (a + b) / 2.0
+        hit = (distance < reach)[..., 0]
+        return mid + unit * (reach / 2.0 + eps), hit
+
+    ball_reach = params.ball_size + params.player_size
+    players_out, ball_hit = apart(positions, ball[None, :], ball_reach)
+    ball_out = 2.0 * (positions + ball[None, :]) / 2.0 - players_out  # the mirror place
+    pair_out, pair_hit = apart(positions[:, None, :], positions[None, :, :],
+                               2.0 * params.player_size)
+    pair_hit = pair_hit & ~jnp.eye(positions.shape[0], dtype=bool)
+    total = jnp.where(ball_hit[:, None], players_out, 0.0) + jnp.sum(
+        jnp.where(pair_hit[..., None], pair_out, 0.0), axis=1
+    )
+    count = ball_hit.astype(jnp.float32) + jnp.sum(pair_hit, axis=1)
+    collided = count > 0
+    positions = jnp.where(collided[:, None], total / jnp.maximum(count, 1.0)[:, None], positions)
+    velocities = jnp.where(collided[:, None], -0.1 * velocities, velocities)
+    ball_count = jnp.sum(ball_hit)
+    ball_total = jnp.sum(jnp.where(ball_hit[:, None], ball_out, 0.0), axis=0)
+    ball = jnp.where(ball_count > 0, ball_total / jnp.maximum(ball_count, 1), ball)
+    ball_velocity = jnp.where(ball_count > 0, -0.1 * ball_velocity, ball_velocity)
+    return positions, velocities, ball, ball_velocity
+
+
 # ------------------------------------------------------------------ the 12-value action
 ACTION_SIZE = 12
 DASH, KICK, TURN, TACKLE, NOOP = range(5)
@@ -338,6 +386,10 @@ class RcssSoccer(Soccer):
             state.ball_velocity,
         )
         ball = physics.roll_ball(state.ball_position, ball_velocity, params)
+        positions, velocities, ball_position, ball_velocity = collide(
+            positions, velocities, ball.position, ball.velocity, b
+        )
+        ball = ball._replace(position=ball_position, velocity=ball_velocity)
         terms = reward_terms(
             ball.goals, ball.position, ball.velocity, velocities, state.ball_position, positions,
             params,

@@ -239,19 +239,16 @@ def test_rcss_soccer_jit_vmap_and_eager_agree_and_a_seed_repeats() -> None:
     keys = jax.random.split(jax.random.key(5), 3)
     states, _ = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
     actions = jax.random.uniform(jax.random.key(6), (3, 2, 2, 12), minval=-1.0, maxval=1.0)
-    step = jax.vmap(env.transition, in_axes=(0, 0, 0, None))
+    step = jax.jit(jax.vmap(env.transition, in_axes=(0, 0, 0, None)))
     batched, rewards, _, _ = step(keys, states, actions, params)
-    jitted, jit_rewards, _, _ = jax.jit(step)(keys, states, actions, params)
-    for g in range(3):
+    for g in (0, 2):  # eager runs op by op (seconds a step): two games of the three
         state = jax.tree.map(lambda leaf, g=g: leaf[g], states)
         one, one_rewards, _, _ = env.transition(keys[g], state, actions[g], params)
         for a, b in zip(jax.tree.leaves(one), jax.tree.leaves(batched), strict=True):
             np.testing.assert_allclose(a, b[g], rtol=1e-5, atol=1e-5)
         np.testing.assert_allclose(one_rewards, rewards[g], rtol=1e-5, atol=1e-6)
-    for a, b in zip(jax.tree.leaves(batched), jax.tree.leaves(jitted), strict=True):
-        np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-5)
-    again, *_ = jax.jit(step)(keys, states, actions, params)
-    for a, b in zip(jax.tree.leaves(again), jax.tree.leaves(jitted), strict=True):
+    again, *_ = step(keys, states, actions, params)
+    for a, b in zip(jax.tree.leaves(again), jax.tree.leaves(batched), strict=True):
         np.testing.assert_array_equal(a, b)
 
 

@@ -78,8 +78,8 @@ def ball_contacts(
 
 
 def cap_speed(velocity: jax.Array, max_speed: jax.Array | float) -> jax.Array:
-    """Scale ``f32[2]`` down to at most ``max_speed``."""
-    speed = jnp.sqrt(jnp.sum(velocity * velocity))
+    """Scale ``f32[..., 2]`` down to at most ``max_speed`` (each vector on its own)."""
+    speed = jnp.sqrt(jnp.sum(velocity * velocity, axis=-1, keepdims=True))
     return velocity * jnp.minimum(1.0, max_speed / jnp.maximum(speed, 1e-12))
 
 

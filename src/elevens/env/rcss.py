@@ -33,8 +33,7 @@ import jax.numpy as jnp
 
 from elevens.env import physics
 from elevens.env.params import EnvParams
-from elevens.env.reward import reward_terms
-from elevens.env.soccer import Soccer, applied_actions
+from elevens.env.soccer import Soccer, applied_actions, finish_step
 from elevens.env.state import State, StepInfo
 
 __all__ = [
@@ -50,6 +49,7 @@ __all__ = [
     "collide",
     "kick_acceleration",
     "kickable",
+    "push",
     "turn",
 ]
 
@@ -192,14 +192,19 @@ def advance(
     ``speed_max``; the object moves by it; then the velocity decays. Returns (position,
     velocity) as the next cycle's see_global reports them."""
 
-    def cap(vector: jax.Array, limit: float) -> jax.Array:
-        size = jnp.sqrt(jnp.sum(vector * vector, axis=-1, keepdims=True))
-        return vector * jnp.minimum(1.0, limit / jnp.maximum(size, 1e-12))
-
-    pushed = jnp.any(acceleration != 0.0, axis=-1, keepdims=True)
-    moved = cap(velocity + cap(acceleration, accel_max), speed_max)
-    velocity = jnp.where(pushed, moved, velocity)
+    velocity = push(velocity, acceleration, accel_max, speed_max)
     return position + velocity, velocity * decay
+
+
+def push(
+    velocity: jax.Array, acceleration: jax.Array, accel_max: float, speed_max: float
+) -> jax.Array:
+    """The velocity f32[..., 2] after a push: the acceleration capped at ``accel_max`` is
+    added, and the sum capped at ``speed_max``; without a push the velocity stays as it is
+    (the server caps a speed only when something pushes)."""
+    pushed = jnp.any(acceleration != 0.0, axis=-1, keepdims=True)
+    moved = physics.cap_speed(velocity + physics.cap_speed(acceleration, accel_max), speed_max)
+    return jnp.where(pushed, moved, velocity)
 
 
 def collide(
@@ -357,13 +362,13 @@ class RcssSoccer(Soccer):
             turn(body, command.turn_moment, state.velocities, b),
             body,
         )
-        push = jnp.where(
+        dash = jnp.where(
             (command.kind == DASH)[:, None],
             dash_acceleration(command.dash_power, command.dash_direction, body, 1.0, b),
             0.0,
         )
         positions, velocities = advance(
-            state.positions, state.velocities, push, b.player_accel_max, b.player_speed_max,
+            state.positions, state.velocities, dash, b.player_accel_max, b.player_speed_max,
             b.player_decay,
         )
         positions = physics.clamp_to_field(positions, params)
@@ -376,46 +381,15 @@ class RcssSoccer(Soccer):
             ),
             0.0,
         ).sum(axis=0)
-        # The kicks' sum, capped, joins the ball's velocity; roll_ball then moves it, decays it
+        # The kicks' sum pushes the ball; roll_ball then moves it, decays it
         # (params.ball_friction) and scores or bounces it.
-        size = jnp.sqrt(jnp.sum(kick * kick))
-        kick = kick * jnp.minimum(1.0, b.ball_accel_max / jnp.maximum(size, 1e-12))
-        ball_velocity = jnp.where(
-            size > 0.0,
-            physics.cap_speed(state.ball_velocity + kick, b.ball_speed_max),
-            state.ball_velocity,
-        )
+        ball_velocity = push(state.ball_velocity, kick, b.ball_accel_max, b.ball_speed_max)
         ball = physics.roll_ball(state.ball_position, ball_velocity, params)
         positions, velocities, ball_position, ball_velocity = collide(
             positions, velocities, ball.position, ball.velocity, b
         )
         ball = ball._replace(position=ball_position, velocity=ball_velocity)
-        terms = reward_terms(
-            ball.goals, ball.position, ball.velocity, velocities, state.ball_position, positions,
-            params,
+        return finish_step(
+            key, state, positions, headings, velocities, command_summary(command), ball, kicks,
+            jnp.zeros_like(kicks), params,
         )
-        scored = jnp.sum(ball.goals) > 0
-        respawn = physics.spawn(key, params)
-        step = state.step + 1
-        new_state = State(
-            positions=jnp.where(scored, respawn.positions, positions),
-            headings=jnp.where(scored, respawn.headings, headings),
-            velocities=jnp.where(scored, 0.0, velocities),
-            last_actions=command_summary(command),
-            start_positions=jnp.where(scored, respawn.positions, state.start_positions),
-            ball_position=jnp.where(scored, respawn.ball_position, ball.position),
-            ball_velocity=jnp.where(scored, 0.0, ball.velocity),
-            score=state.score + ball.goals,
-            step=step,
-        )
-        done = step >= params.episode_length
-        info = StepInfo(
-            goals=ball.goals,
-            kicks=kicks,
-            pushes=jnp.zeros_like(kicks),
-            goal_reward=terms.goal,
-            ball_shaping=terms.ball,
-            approach_shaping=terms.approach,
-            truncated=done,
-        )
-        return new_state, terms.total, done, info

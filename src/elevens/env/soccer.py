@@ -27,6 +27,51 @@ def applied_actions(actions: jax.Array) -> jax.Array:
     return jnp.clip(jnp.where(jnp.isnan(actions), 0.0, actions), -1.0, 1.0)
 
 
+def finish_step(
+    key: jax.Array,
+    state: State,
+    positions: jax.Array,
+    headings: jax.Array,
+    velocities: jax.Array,
+    last_actions: jax.Array,
+    ball: physics.BallUpdate,
+    kicks: jax.Array,
+    pushes: jax.Array,
+    params: EnvParams,
+) -> tuple[State, jax.Array, jax.Array, StepInfo]:
+    """The end of a step, whatever moved the bodies and the ball: rewards, the respawn after a
+    goal, the new State and StepInfo. ``state`` is the step's start; the rest its outcome."""
+    terms = reward_terms(
+        ball.goals, ball.position, ball.velocity, velocities, state.ball_position, positions,
+        params,
+    )
+    scored = jnp.sum(ball.goals) > 0
+    respawn = physics.spawn(key, params)
+    step = state.step + 1
+    new_state = State(
+        positions=jnp.where(scored, respawn.positions, positions),
+        headings=jnp.where(scored, respawn.headings, headings),
+        velocities=jnp.where(scored, 0.0, velocities),
+        last_actions=last_actions,
+        start_positions=jnp.where(scored, respawn.positions, state.start_positions),
+        ball_position=jnp.where(scored, respawn.ball_position, ball.position),
+        ball_velocity=jnp.where(scored, 0.0, ball.velocity),
+        score=state.score + ball.goals,
+        step=step,
+    )
+    done = step >= params.episode_length
+    info = StepInfo(
+        goals=ball.goals,
+        kicks=kicks,
+        pushes=pushes,
+        goal_reward=terms.goal,
+        ball_shaping=terms.ball,
+        approach_shaping=terms.approach,
+        truncated=done,
+    )
+    return new_state, terms.total, done, info
+
+
 class Soccer:
     """A 2D soccer game of ``n`` against ``n`` players. Pure functions; jit and vmap freely.
 
@@ -108,36 +153,10 @@ class Soccer:
             state.ball_velocity + contacts.impulse, params.ball_max_speed
         )
         ball = physics.roll_ball(state.ball_position, ball_velocity, params)
-        terms = reward_terms(
-            ball.goals, ball.position, ball.velocity, velocities, state.ball_position, positions,
-            params,
+        return finish_step(
+            key, state, positions, headings, velocities, flat_actions, ball, contacts.kicks,
+            contacts.pushes, params,
         )
-
-        scored = jnp.sum(ball.goals) > 0
-        respawn = physics.spawn(key, params)
-        step = state.step + 1
-        new_state = State(
-            positions=jnp.where(scored, respawn.positions, positions),
-            headings=jnp.where(scored, respawn.headings, headings),
-            velocities=jnp.where(scored, 0.0, velocities),
-            last_actions=flat_actions,
-            start_positions=jnp.where(scored, respawn.positions, state.start_positions),
-            ball_position=jnp.where(scored, respawn.ball_position, ball.position),
-            ball_velocity=jnp.where(scored, 0.0, ball.velocity),
-            score=state.score + ball.goals,
-            step=step,
-        )
-        done = step >= params.episode_length
-        info = StepInfo(
-            goals=ball.goals,
-            kicks=contacts.kicks,
-            pushes=contacts.pushes,
-            goal_reward=terms.goal,
-            ball_shaping=terms.ball,
-            approach_shaping=terms.approach,
-            truncated=done,
-        )
-        return new_state, terms.total, done, info
 
     def step_checked(
         self, key: jax.Array, state: State, actions: jax.Array, params: EnvParams

@@ -4,6 +4,7 @@ with its noise switched off."""
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from typing import Any
 
 import jax
@@ -268,14 +269,42 @@ def test_a_kick_into_the_goal_scores_and_respawns() -> None:
     assert abs(float(after.ball_position[0])) < 52.5 and float(after.positions[0, 0]) < 0.0
 
 
-@needs_rcssserver
-def test_rcss_soccer_follows_the_server_for_a_sequence_of_commands() -> None:
-    """Ten cycles of one player's dashes, turns and kicks, played in the server (noise off)
-    and in RcssSoccer from the same start: the same path for the player and the ball."""
+def _beside_the_server(
+    script: list[np.ndarray], player: np.ndarray, heading: float, ball: np.ndarray
+) -> Iterator[tuple[int, Any, Any, Any]]:
+    """One player's 12-value actions played in rcssserver (noise off) and in RcssSoccer from
+    the same start (the player at ``player`` facing ``heading``, the ball at rest at ``ball``,
+    world frame); yields (cycle, the server's see_global, its view of the player, RcssSoccer's
+    state) after each action."""
     from elevens.robocup.actions import actions_to_commands
     from elevens.robocup.env import RoboCupConfig, RoboCupEnv
     from tests.env.helpers import build_state
 
+    env = rcss.RcssSoccer(1)
+    params = env.default_params()
+    state = build_state(params, positions=np.array([player, [-40.0, -30.0]]),
+                        headings=np.array([heading, 0.0]), ball_position=tuple(ball))
+    config = RoboCupConfig(players_per_team=1, server_options=NO_NOISE)
+    with RoboCupEnv(config) as server_env:
+        server_env.reset(seed=0)
+        client: Any = server_env._client
+        client.reset(np.array([[_world(*player)], [[40.0, 30.0]]]),
+                     np.array([[-math.degrees(heading)], [180.0]]), tuple(_world(*ball)))
+        placed = client.step([None, None]).world  # the reset's own cycle may show the old state
+        assert _world(placed.ball.x, placed.ball.y) == pytest.approx(ball, abs=1e-3)
+        for cycle, action in enumerate(script):
+            (command,) = actions_to_commands(action[None])
+            world = client.step([command, None]).world
+            state, *_ = env.step(jax.random.key(cycle), state,
+                                 jnp.asarray(np.stack([[action], [_action(rcss.NOOP)]])), params)
+            me = next(p for p in world.players if p.team == config.team_names[0])
+            yield cycle, world, me, state
+
+
+@needs_rcssserver
+def test_rcss_soccer_follows_the_server_for_a_sequence_of_commands() -> None:
+    """Ten cycles of one player's dashes, turns and kicks, played in the server (noise off)
+    and in RcssSoccer from the same start: the same path for the player and the ball."""
     script = [
         _action(rcss.DASH, a5=1.0), _action(rcss.DASH, a5=1.0, a6=0.5),
         _action(rcss.TURN, a9=-0.3), _action(rcss.DASH, a5=0.8),
@@ -283,30 +312,15 @@ def test_rcss_soccer_follows_the_server_for_a_sequence_of_commands() -> None:
         _action(rcss.NOOP), _action(rcss.KICK, a7=1.0, a8=-0.5),
         _action(rcss.TURN, a9=0.8), _action(rcss.DASH, a5=1.0, a6=-1.0),
     ]
-    env = rcss.RcssSoccer(1)
-    params = env.default_params()
-    # The ball passes within reach but never touches the player: collisions are not modelled.
-    start_player, start_ball = np.array([0.0, -10.0]), np.array([2.2, -8.8])
-    state = build_state(params, positions=np.array([start_player, [-40.0, -30.0]]),
-                        headings=np.array([0.3, 0.0]), ball_position=tuple(start_ball))
-    config = RoboCupConfig(players_per_team=1, server_options=NO_NOISE)
-    with RoboCupEnv(config) as server_env:
-        server_env.reset(seed=0)
-        client: Any = server_env._client
-        client.reset(np.array([[_world(*start_player)], [[40.0, 30.0]]]),
-                     np.array([[-math.degrees(0.3)], [180.0]]), tuple(_world(*start_ball)))
-        placed = client.step([None, None]).world  # the reset's own cycle may show the old state
-        assert _world(placed.ball.x, placed.ball.y) == pytest.approx(start_ball, abs=1e-3)
-        for cycle, action in enumerate(script):
-            (command,) = actions_to_commands(action[None])
-            world = client.step([command, None]).world
-            state, *_ = env.step(jax.random.key(cycle), state,
-                                 jnp.asarray(np.stack([[action], [_action(rcss.NOOP)]])), params)
-            me = next(p for p in world.players if p.team == config.team_names[0])
-            np.testing.assert_allclose(_world(me.x, me.y), state.positions[0], atol=2e-3)
-            np.testing.assert_allclose(_world(world.ball.x, world.ball.y), state.ball_position,
-                                       atol=2e-3)
-            assert _body(me.body) == pytest.approx(float(state.headings[0]), abs=0.02)
+    # The ball passes within reach but never touches the player (collisions have their own
+    # test): the kicks are what is compared.
+    for _, world, me, state in _beside_the_server(
+        script, np.array([0.0, -10.0]), 0.3, np.array([2.2, -8.8])
+    ):
+        np.testing.assert_allclose(_world(me.x, me.y), state.positions[0], atol=2e-3)
+        np.testing.assert_allclose(_world(world.ball.x, world.ball.y), state.ball_position,
+                                   atol=2e-3)
+        assert _body(me.body) == pytest.approx(float(state.headings[0]), abs=0.02)
 
 
 def test_collisions_push_overlapping_bodies_apart_and_bounce_them() -> None:
@@ -332,36 +346,17 @@ def test_collisions_push_overlapping_bodies_apart_and_bounce_them() -> None:
 
 @needs_rcssserver
 def test_a_player_that_runs_into_the_ball_bounces_as_in_the_server() -> None:
-    from elevens.robocup.actions import actions_to_commands
-    from elevens.robocup.env import RoboCupConfig, RoboCupEnv
-    from tests.env.helpers import build_state
-
-    env = rcss.RcssSoccer(1)
-    params = env.default_params()
-    start_player, start_ball = np.array([0.0, -10.0]), np.array([0.8, -10.05])
-    config = RoboCupConfig(players_per_team=1, server_options=NO_NOISE)
-    with RoboCupEnv(config) as server_env:
-        server_env.reset(seed=0)
-        client: Any = server_env._client
-        client.reset(np.array([[_world(*start_player)], [[40.0, 30.0]]]),
-                     np.array([[0.0], [180.0]]), tuple(_world(*start_ball)))
-        client.step([None, None])
-        state = build_state(params, positions=np.array([start_player, [-40.0, -30.0]]),
-                            headings=np.array([0.0, 0.0]), ball_position=tuple(start_ball))
-        dash = _action(rcss.DASH, a5=1.0)
-        for cycle in range(3):
-            (command,) = actions_to_commands(dash[None])
-            world = client.step([command, None]).world
-            state, *_ = env.step(jax.random.key(cycle), state,
-                                 jnp.asarray(np.stack([[dash], [_action(rcss.NOOP)]])), params)
-            me = next(p for p in world.players if p.team == config.team_names[0])
-            np.testing.assert_allclose(_world(me.x, me.y), state.positions[0], atol=2e-3)
-            np.testing.assert_allclose(_world(me.vx, me.vy), state.velocities[0], atol=2e-3)
-            np.testing.assert_allclose(_world(world.ball.x, world.ball.y), state.ball_position,
-                                       atol=2e-3)
-            if cycle == 0:
-                # A free dash would have carried the player 0.6 m, onto the ball (0.8 m
-                # ahead): it stopped touching it, and bounced back.
-                gap = float(jnp.linalg.norm(state.ball_position - state.positions[0]))
-                assert gap == pytest.approx(P.ball_size + P.player_size, abs=1e-3)
-                assert float(state.velocities[0, 0]) < 0.0
+    dash = _action(rcss.DASH, a5=1.0)
+    for cycle, world, me, state in _beside_the_server(
+        [dash] * 3, np.array([0.0, -10.0]), 0.0, np.array([0.8, -10.05])
+    ):
+        np.testing.assert_allclose(_world(me.x, me.y), state.positions[0], atol=2e-3)
+        np.testing.assert_allclose(_world(me.vx, me.vy), state.velocities[0], atol=2e-3)
+        np.testing.assert_allclose(_world(world.ball.x, world.ball.y), state.ball_position,
+                                   atol=2e-3)
+        if cycle == 0:
+            # A free dash would have carried the player 0.6 m, onto the ball (0.8 m ahead):
+            # it stopped touching it, and bounced back.
+            gap = float(jnp.linalg.norm(state.ball_position - state.positions[0]))
+            assert gap == pytest.approx(P.ball_size + P.player_size, abs=1e-3)
+            assert float(state.velocities[0, 0]) < 0.0

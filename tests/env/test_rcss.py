@@ -253,6 +253,48 @@ def test_rcss_soccer_jit_vmap_and_eager_agree_and_a_seed_repeats() -> None:
         np.testing.assert_array_equal(a, b)
 
 
+def test_with_a_see_period_players_act_on_their_last_see_and_jit_agrees() -> None:
+    from elevens.env.state import SELF_FEATURES
+
+    env = rcss.RcssSoccer(2, see_period=3)
+    params = env.default_params(episode_length=40)
+    state, obs = env.reset(jax.random.key(1), params)
+    fresh_observe = jax.jit(rcss.Soccer.observe, static_argnums=0)
+    fresh = fresh_observe(env, state, params)
+    np.testing.assert_allclose(obs.self_features, fresh.self_features, atol=1e-6)
+    dash = jnp.zeros((2, 2, 12)).at[..., 0].set(1.0).at[..., 5].set(1.0)  # everyone dashes
+    step = jax.jit(env.step)
+    x = SELF_FEATURES.index("x")
+    clock = SELF_FEATURES.index("time_left")
+    seen_x = np.array(obs.self_features[..., x])
+    for t in range(1, 7):
+        before = obs
+        state, obs, *_ = step(jax.random.key(t), state, dash, params)
+        fresh = fresh_observe(env, state, params)
+        assert int(state.step) == t
+        for player in range(2):
+            sees = (t + player) % 3 == 0
+            if sees:
+                seen_x[:, player] = fresh.self_features[:, player, x]
+            np.testing.assert_array_equal(obs.self_features[:, player, x], seen_x[:, player])
+            np.testing.assert_array_equal(
+                obs.entity_mask[:, player],
+                fresh.entity_mask[:, player] if sees else before.entity_mask[:, player],
+            )
+        # The clock is current between sees; the position moved on but the view did not.
+        np.testing.assert_array_equal(
+            obs.self_features[..., clock], fresh.self_features[..., clock]
+        )
+        assert not np.allclose(fresh.self_features[..., x], seen_x)
+    eager_state, eager_obs, *_ = env.step(jax.random.key(9), state, dash, params)
+    jit_state, jit_obs, *_ = step(jax.random.key(9), state, dash, params)
+    eager, jitted = jax.tree.leaves((eager_state, eager_obs)), jax.tree.leaves((jit_state, jit_obs))
+    for a, b in zip(eager, jitted, strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-5)
+    with pytest.raises(ValueError, match="see_period=0 is invalid"):
+        rcss.RcssSoccer(2, see_period=0)
+
+
 def test_a_kick_into_the_goal_scores_and_respawns() -> None:
     from tests.env.helpers import build_state
 

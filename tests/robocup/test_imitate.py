@@ -432,7 +432,7 @@ def test_imitation_of_thesis12_commands_chooses_between_them():
     assert result.held_out_agreement > 0.95 and result.held_out_move_error < 0.1
 
 
-def test_a_thesis12_team_plays_the_server_only(tmp_path):
+def test_a_thesis12_team_plays_the_server_or_its_bodies_only(tmp_path):
     out = tmp_path / "team12"
     imitate_from_logs(
         [LOGS], ["HELIOS_b"], out, init_from="elevens-2v2", steps=2, batch_size=2,
@@ -443,8 +443,9 @@ def test_a_thesis12_team_plays_the_server_only(tmp_path):
 
     team = load_team(str(out))
     assert team.actions == 12
-    with pytest.raises(ValueError, match="12-value RoboCup action.*rcssserver only"):
-        team.check_size(11)  # what every simulator game checks
+    with pytest.raises(ValueError, match="12-value RoboCup action.*env.physics rcss"):
+        team.check_size(11)  # what the simulator's own game checks
+    team.check_size(11, actions=12)  # the simulator with the server's bodies takes it
     with pytest.raises(ValueError, match="must be 'thesis12', not 'sim'"):
         load_robocup_team(str(out), "sim")
     player = RoboCupTeam(str(out), team_name="mine")

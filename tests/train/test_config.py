@@ -446,7 +446,7 @@ def test_the_action_count_is_2_or_12_and_training_takes_2() -> None:
         assert TrainConfig.from_saved(saved, "x.json").learner.network.actions == 2
 
 
-def test_rcss_physics_takes_the_12_value_action_and_no_handcrafted_teams() -> None:
+def test_rcss_physics_takes_the_12_value_action_and_its_own_handcrafted_team() -> None:
     from elevens.train.config import make_config
     from elevens.train.learner import make_learner
 
@@ -456,15 +456,18 @@ def test_rcss_physics_takes_the_12_value_action_and_no_handcrafted_teams() -> No
                                        "run.write_gif": False})
     with pytest.raises(ValueError, match="env.physics='rcss' takes the thesis's 12-value"):
         make_learner(two.learner)
-    with pytest.raises(ValueError, match=r"run.eval_teams=\('naive',\) is invalid with env"):
+    with pytest.raises(ValueError, match=r"run.eval_teams team 'naive' gives 2 action values"):
         make_config("quickstart", **{"env.physics": "rcss", "network.actions": 12,
                                      "run.eval_teams": ("naive",), "run.write_gif": False})
+    make_config("quickstart", **{"env.physics": "rcss", "network.actions": 12,
+                                 "run.eval_teams": ("rcss_naive",), "run.write_gif": False})
     with pytest.raises(ValueError, match="run.write_gif=True is invalid with env.physics"):
         make_config("quickstart", **{"env.physics": "rcss", "network.actions": 12,
                                      "run.eval_teams": ()})
     # A config saved before the field existed reads as the simulator's game, silently.
     saved = make_config("quickstart").to_dict()
     del saved["learner"]["env"]["physics"]
+    del saved["learner"]["env"]["see_period"]
     import warnings
 
     with warnings.catch_warnings():

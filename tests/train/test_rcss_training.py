@@ -8,9 +8,11 @@ from pathlib import Path
 
 import jax
 import numpy as np
+import pytest
 
 from elevens.runs.logging import read_metrics_csv
 from elevens.runs.loop import train
+from elevens.train.config import validate
 from tests.train.test_trainer import tiny_config
 
 RCSS = {
@@ -18,7 +20,8 @@ RCSS = {
     "network.actions": 12,
     "env.ball_friction": 0.94,
     "env.ball_max_speed": 3.0,
-    "run.eval_teams": (),
+    "run.eval_teams": ("rcss_naive",),
+    "run.eval_games": 8,
     "run.write_gif": False,
 }
 
@@ -28,13 +31,18 @@ def test_a_run_with_the_servers_bodies_trains_a_team_for_rcssserver(tmp_path: Pa
     from elevens.robocup.observe import PerceptMemory
     from elevens.robocup.play import load_robocup_team
 
-    config = tiny_config(tmp_path, **{**RCSS, "run.iterations": 4})
+    # A quarter of the games against the scripted 12-value team, which is also the yardstick.
+    config = tiny_config(
+        tmp_path, **{**RCSS, "run.iterations": 4, "opponent.mix": ("rcss_naive=0.25",)}
+    )
     result = train(config, progress=False)
     assert result.checkpoint is not None and result.checkpoint.is_dir()
     curves = read_metrics_csv(tmp_path)
     losses = curves["train/loss"].values
     assert len(losses) == 4 and all(math.isfinite(v) for v in losses)
     assert curves["time/env_steps"].values[-1] == 4 * 64 * 64
+    outcomes = curves["eval/rcss_naive/outcome"].values
+    assert len(outcomes) == 2 and all(0.0 <= v <= 1.0 for v in outcomes)  # start and end
     # The run is a 12-value team: rcssserver's thesis12 mode plays it, the "sim" rule refuses it.
     player = load_robocup_team(str(tmp_path), "thesis12")
     assert player.actions == 12
@@ -51,3 +59,29 @@ def test_a_run_with_the_servers_bodies_trains_a_team_for_rcssserver(tmp_path: Pa
         assert "12-value action" in str(error)
     else:
         raise AssertionError("a 12-value team loaded for the 'sim' action mode")
+
+
+@pytest.mark.parametrize(
+    ("physics", "flag", "value", "allowed"),
+    [
+        ("rcss", "run.eval_teams", ("naive",), "rcss_naive"),
+        ("rcss", "opponent.mix", ("teamwork=0.5",), "rcss_naive"),
+        ("thesis", "run.eval_teams", ("rcss_naive",), "naive, random, teamwork"),
+        ("thesis", "opponent.mix", ("rcss_naive=0.5",), "naive, random, teamwork"),
+    ],
+)
+def test_a_handcrafted_team_must_give_the_action_the_game_takes(
+    physics: str, flag: str, value: tuple[str, ...], allowed: str
+) -> None:
+    overrides = RCSS if physics == "rcss" else {"run.eval_teams": ()}
+    with pytest.raises(ValueError, match=f"{flag} team .* takes .*: the handcrafted teams for it "
+                       f"are {allowed}"):
+        validate(tiny_config(**{**overrides, flag: value}))
+
+
+def test_a_see_period_is_the_servers_only() -> None:
+    validate(tiny_config(**{**RCSS, "env.see_period": 3}))
+    with pytest.raises(ValueError, match="env.see_period=3 is invalid with env.physics='thesis'"):
+        validate(tiny_config(**{"env.see_period": 3}))
+    with pytest.raises(ValueError, match="env.see_period=0 is invalid"):
+        validate(tiny_config(**{**RCSS, "env.see_period": 0}))

@@ -14,9 +14,10 @@ and turns follow the server's. These are those rules, transcribed from rcssserve
 :class:`RcssSoccer` is the simulator's game with these bodies and the thesis's 12-value RoboCup
 action (table 4.1; ``elevens.robocup.actions`` sends the same values to the server), so a
 policy trained in it gives what an elevens team in rcssserver gives. Not modelled yet: stamina,
-tackles, the goalie's catch, the referee (the ball bounces off the lines as in the simulator),
-see noise and the view cone's timing; collisions are resolved in one pass where the server
-repeats it while anything still overlaps.
+tackles, the goalie's catch, the referee (the ball bounces off the lines as in the simulator)
+and see noise; collisions are resolved in one pass where the server repeats it while anything
+still overlaps. The see's timing is an option (``see_period``: with 3, each player acts on its
+last see, as the bridge's players do in the wide view).
 
 Frames: the simulator's world frame (metres, y up, headings in radians counter-clockwise).
 Command arguments are the server's: powers 0..100 and directions in degrees, clockwise, relative
@@ -26,6 +27,7 @@ axes), jit- and vmap-safe.
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any, NamedTuple
 
 import jax
@@ -34,7 +36,7 @@ import jax.numpy as jnp
 from elevens.env import physics
 from elevens.env.params import EnvParams
 from elevens.env.soccer import Soccer, applied_actions, finish_step
-from elevens.env.state import State, StepInfo
+from elevens.env.state import SELF_FEATURES, Observation, State, StepInfo
 
 __all__ = [
     "ACTION_SIZE",
@@ -42,6 +44,7 @@ __all__ = [
     "RcssParams",
     "RcssSoccer",
     "decode_thesis12",
+    "encode_thesis12",
     "rcss_field",
     "advance",
     "dash_acceleration",
@@ -255,6 +258,11 @@ def collide(
 
 # ------------------------------------------------------------------ the 12-value action
 ACTION_SIZE = 12
+# Self features the bridge updates every cycle, between sees too (the rest come from a see).
+_EVERY_CYCLE = [
+    SELF_FEATURES.index(name)
+    for name in ("time_left", "last_move", "last_rot", "start_x", "start_y")
+]
 DASH, KICK, TURN, TACKLE, NOOP = range(5)
 
 
@@ -288,6 +296,36 @@ def decode_thesis12(actions: jax.Array) -> Commands:
         kick_direction=a[..., 8] * 180.0,
         turn_moment=a[..., 9] * 180.0,
     )
+
+
+def encode_thesis12(commands: Commands) -> jax.Array:
+    """Commands -> f32[..., 12], the inverse of :func:`decode_thesis12` for commands within the
+    server's ranges (dash power 0..100 and direction -90..90 forwards, or backwards beyond
+    that; kick power 0..100; kick direction and turn moment -180..180): how a scripted team
+    that decides in commands gives the 12-value action."""
+    kind = jnp.asarray(commands.kind)
+    scores = jnp.where(jax.nn.one_hot(kind, 5, dtype=jnp.float32) > 0, 1.0, -1.0)
+    direction = jnp.asarray(commands.dash_direction, jnp.float32)
+    backwards = jnp.abs(direction) > 90.0
+    # A backward dash is a negative power with the direction turned round.
+    forward_direction = jnp.where(
+        backwards, jnp.where(direction > 0.0, direction - 180.0, direction + 180.0), direction
+    )
+    power = jnp.where(backwards, -1.0, 1.0) * commands.dash_power / 100.0
+    zeros = jnp.zeros_like(power)
+    values = jnp.stack(
+        [
+            power,
+            forward_direction / 90.0,
+            commands.kick_power / 50.0 - 1.0,
+            commands.kick_direction / 180.0,
+            commands.turn_moment / 180.0,
+            zeros,  # tackle foul: never
+            zeros,  # tackle direction: unused
+        ],
+        axis=-1,
+    )
+    return jnp.clip(jnp.concatenate([scores, values], axis=-1), -1.0, 1.0)
 
 
 def command_summary(commands: Commands) -> jax.Array:
@@ -325,11 +363,58 @@ class RcssSoccer(Soccer):
     reports them (after the cycle's decay), ``State.last_actions`` the 2-value summary of the
     command each player gave. Goals, rewards, respawns, observations and episodes are the
     simulator's (``Soccer``). Use :func:`rcss_field` for the server's field and ball.
+    ``see_period`` > 1: observations are each player's last see (:meth:`observe`), held in
+    ``State.held_observation``.
     """
 
-    def __init__(self, players_per_team: int = 11, body: RcssParams = DEFAULT):
+    def __init__(
+        self, players_per_team: int = 11, body: RcssParams = DEFAULT, see_period: int = 1
+    ):
         super().__init__(players_per_team)
+        if not isinstance(see_period, int) or see_period < 1:
+            raise ValueError(
+                f"see_period={see_period!r} is invalid: cycles between a player's sees, an "
+                "integer of at least 1 (1: a fresh observation every step; 3: the server's "
+                "wide view in synch mode)"
+            )
         self.body = body
+        self.see_period = see_period
+
+    def reset(self, key: jax.Array, params: EnvParams) -> tuple[State, Observation]:
+        state, obs = super().reset(key, params)
+        if self.see_period > 1:
+            state = dataclasses.replace(state, held_observation=obs)
+        return state, obs
+
+    def observe(self, state: State, params: EnvParams) -> Observation:
+        """What the players act on: with ``see_period`` > 1 each player's view from its last
+        see (player i sees in the cycles where (step + i) % see_period == 0, and everyone at an
+        episode's start), with its clock, start point and last command current, as rcssserver's
+        wide view gives every third cycle and the bridge's observation holds in between."""
+        if self.see_period == 1 or state.held_observation is None:
+            return super().observe(state, params)
+        return state.held_observation
+
+    def _held(self, previous: State, state: State, params: EnvParams) -> State:
+        """``state`` with the observation held from ``previous``'s, refreshed where a player
+        sees this cycle."""
+        fresh = super().observe(state, params)
+        held = previous.held_observation
+        if held is None:
+            return dataclasses.replace(state, held_observation=fresh)
+        players = jnp.arange(self.players_per_team)
+        sees = ((state.step + players) % self.see_period == 0) | (state.step == 0)  # [n]
+        sees = jnp.broadcast_to(sees, (2, self.players_per_team))
+        features = jnp.where(sees[..., None], fresh.self_features, held.self_features)
+        features = features.at[..., _EVERY_CYCLE].set(fresh.self_features[..., _EVERY_CYCLE])
+        return dataclasses.replace(
+            state,
+            held_observation=Observation(
+                self_features=features,
+                entities=jnp.where(sees[..., None, None], fresh.entities, held.entities),
+                entity_mask=jnp.where(sees[..., None], fresh.entity_mask, held.entity_mask),
+            )
+        )
 
     def default_params(self, **overrides: Any) -> EnvParams:
         return rcss_field(self.players_per_team, **overrides)
@@ -389,7 +474,10 @@ class RcssSoccer(Soccer):
             positions, velocities, ball.position, ball.velocity, b
         )
         ball = ball._replace(position=ball_position, velocity=ball_velocity)
-        return finish_step(
+        new_state, rewards, done, info = finish_step(
             key, state, positions, headings, velocities, command_summary(command), ball, kicks,
             jnp.zeros_like(kicks), params,
         )
+        if self.see_period > 1:
+            new_state = self._held(state, new_state, params)
+        return new_state, rewards, done, info

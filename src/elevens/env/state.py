@@ -7,6 +7,8 @@ state are in each team's own frame (each team sees itself attacking +x).
 
 from __future__ import annotations
 
+from typing import Any
+
 import jax
 from flax import struct
 
@@ -59,6 +61,9 @@ class State:
     ball_velocity: jax.Array  # f32[2] m/step
     score: jax.Array  # i32[2] goals of team 0 and team 1 this episode
     step: jax.Array  # i32[] steps taken this episode
+    held_observation: Any = None
+    """The observation the players act on when they do not see every step (RcssSoccer with
+    ``see_period`` > 1: each player's last see); None where observations are fresh."""
 
     @property
     def num_players(self) -> int:

@@ -42,6 +42,7 @@ from elevens.train.config import (
     LearnerConfig,
     RunConfig,
     TrainConfig,
+    game_actions,
     mix_schedule,
     scenario_config,
     validate,
@@ -188,7 +189,7 @@ def open_run(
         )
         damage = _resume_damage(checkpointer, config) if latest is not None else None
         for team in config.run.eval_teams:  # a bad spec fails here, before anything compiles
-            evaluation_team(team, config.learner.env.game)
+            evaluation_team(team, config.learner.env.game, game_actions(config.learner))
         start = None
         if config.run.init_from and latest is None:
             _, start = load_start_params(config.run.init_from, config)
@@ -498,7 +499,9 @@ def evaluate(
     team = NetworkTeam(policy=learner.policy, deterministic=run.eval_deterministic, name="learner")
     results: dict[str, float] = {}
     for index, name in enumerate(teams):
-        opponent, opponent_params = evaluation_team(name, learner.env_params)
+        opponent, opponent_params = evaluation_team(
+            name, learner.env_params, game_actions(learner.config)
+        )
         result = play_match(
             learner.env, learner.env_params, team, opponent,
             jax.random.fold_in(key, index), num_games, home_params=state.params.policy,
@@ -512,12 +515,17 @@ def evaluate(
     return results
 
 
-def evaluation_team(spec: str, env_params: EnvParams) -> tuple[Any, Any]:
+def evaluation_team(spec: str, env_params: EnvParams, actions: int = 2) -> tuple[Any, Any]:
     """(TeamPolicy, params) of an evaluation opponent: a handcrafted team told the field, or
-    a trained team (figure 6.4's line against a checkpoint)."""
+    a trained team (figure 6.4's line against a checkpoint); one that cannot play the game
+    (``actions`` action values, ``env_params``' team size) is a ValueError."""
     from elevens.runs.teams import team_on_field
 
     team = team_on_field(spec, env_params, "run.eval_teams")
+    try:
+        team.check_size(int(env_params.players_per_team), actions)
+    except ValueError as error:
+        raise ValueError(f"run.eval_teams team {spec!r}: {error}") from error
     return team.policy, team.params
 
 

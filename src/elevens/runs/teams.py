@@ -279,11 +279,14 @@ def _load_checkpoint(
 
 def load_team(spec: str | TeamSpec, *, deterministic: bool | None = None) -> Team:
     """A ``Team`` from a spec word (or a parsed ``TeamSpec``); see the module docstring."""
-    from elevens.teams.registry import resolve_team
+    from elevens.teams.registry import action_size, resolve_team
 
     parsed = parse_team_spec(spec) if isinstance(spec, str) else spec
     if parsed.handcrafted is not None:
-        return Team(name=parsed.name, policy=resolve_team(parsed.handcrafted), spec=parsed.text)
+        policy = resolve_team(parsed.handcrafted)
+        return Team(
+            name=parsed.name, policy=policy, spec=parsed.text, actions=action_size(policy)
+        )
     folder = load_team_folder(parsed)
     if folder is not None:
         config, networks = folder
@@ -436,9 +439,10 @@ def _loaded_team(spec: str, field: str) -> Team:
         raise ValueError(f"{field} team {spec!r}: {error}") from error
 
 
-def check_team_size(team: Team, players_per_team: int) -> None:
-    """Raise ``ValueError`` if ``team``'s params cannot play ``players_per_team`` a side."""
-    team.check_size(players_per_team)
+def check_team_size(team: Team, players_per_team: int, actions: int = 2) -> None:
+    """Raise ``ValueError`` if ``team`` cannot play ``players_per_team`` a side in a game that
+    takes ``actions`` action values."""
+    team.check_size(players_per_team, actions)
 
 
 def unique_names(teams: list[Team]) -> list[str]:

@@ -60,16 +60,24 @@ class Team:
 
     actions: int = 2
     """Action values its policy gives: 2, the simulator's (move, rot); 12, the thesis's
-    RoboCup action (it plays rcssserver only)."""
+    RoboCup action (it plays rcssserver, or the simulator with its bodies: env.physics rcss)."""
 
-    def check_size(self, players_per_team: int) -> None:
-        """Raise ``ValueError`` if the params cannot play ``players_per_team`` a side in the
-        simulator."""
-        if self.actions != 2:
+    def check_size(self, players_per_team: int, actions: int = 2) -> None:
+        """Raise ``ValueError`` unless the team can play ``players_per_team`` a side in a game
+        that takes ``actions`` action values: 2, the simulator's game; 12, the simulator with
+        rcssserver's bodies (``env.physics rcss``)."""
+        if self.actions != actions:
+            if actions == 2:
+                raise ValueError(
+                    f"team {self.name!r} ({self.spec}) gives the thesis's {self.actions}-value "
+                    "RoboCup action, not the simulator's (move, rot): it plays the simulator "
+                    "with rcssserver's bodies (env.physics rcss), and a trained one rcssserver "
+                    "(elevens robocup match)"
+                )
             raise ValueError(
-                f"team {self.name!r} ({self.spec}) gives the thesis's {self.actions}-value "
-                "RoboCup action, not the simulator's (move, rot): it plays rcssserver only "
-                "(elevens robocup match, elevens robocup train --network.actions 12)"
+                f"team {self.name!r} ({self.spec}) gives {self.actions} action values; this "
+                f"game takes {actions} (the thesis's RoboCup action: a team trained with "
+                "env.physics rcss or network.actions 12, or the handcrafted rcss_naive)"
             )
         if self.size_dependent and self.trained_players != players_per_team:
             raise ValueError(

@@ -6,13 +6,26 @@ import dataclasses
 
 from elevens.env import EnvParams
 from elevens.teams.base import TeamPolicy
+from elevens.teams.rcss_naive import RcssNaiveTeam
 from elevens.teams.scripted import Field, NaiveTeam, RandomTeam, TeamworkTeam
 
 HANDCRAFTED: dict[str, TeamPolicy] = {
     "random": RandomTeam(),
     "naive": NaiveTeam(),
     "teamwork": TeamworkTeam(),
+    "rcss_naive": RcssNaiveTeam(),
 }
+
+
+def action_size(team: TeamPolicy) -> int:
+    """Action values a handcrafted team gives: 2, the simulator's (move, rot); 12, the thesis's
+    RoboCup action (``rcss_naive``, for ``env.physics rcss``)."""
+    return int(getattr(team, "actions", 2))
+
+
+def handcrafted_for(actions: int) -> list[str]:
+    """The handcrafted teams' names that give ``actions`` action values."""
+    return sorted(name for name, team in HANDCRAFTED.items() if action_size(team) == actions)
 
 
 def resolve_team(name: str, params: EnvParams | None = None) -> TeamPolicy:
@@ -30,6 +43,17 @@ def resolve_team(name: str, params: EnvParams | None = None) -> TeamPolicy:
         ) from None
     if params is None:
         return team
+    if isinstance(team, RcssNaiveTeam):
+        return dataclasses.replace(
+            team,
+            field=dataclasses.replace(
+                team.field,
+                half_length=float(params.half_length),
+                half_width=float(params.half_width),
+                goal_half_width=float(params.goal_width) / 2,
+                ball_friction=float(params.ball_friction),
+            ),
+        )
     field = Field(
         half_length=float(params.half_length),
         half_width=float(params.half_width),

@@ -102,8 +102,14 @@ class EnvConfig:
     (``elevens.env.rcss.RcssSoccer``; with ``network.actions 12``), so the trained team plays
     ``elevens robocup match`` as it trained. Give it the server's field and ball as well
     (``--env.field-length 105 --env.field-width 68 --env.goal-width 14.02
-    --env.ball-friction 0.94 --env.ball-max-speed 3``). Its games have no scripted teams:
-    evaluate in rcssserver, not against the simulator's handcrafted teams."""
+    --env.ball-friction 0.94 --env.ball-max-speed 3``). Its handcrafted team is
+    ``rcss_naive`` (for ``run.eval_teams`` and ``opponent.mix``); the simulator's own
+    handcrafted teams give the 2-value action and cannot play it."""
+    see_period: int = 1
+    """With physics "rcss": cycles between two sees of a player. 1: a fresh observation every
+    step; 3: rcssserver's wide view in synch mode, as ``elevens robocup`` plays (each player
+    acts on its last see, with its clock and last command current; the critic sees the
+    state)."""
 
     @property
     def players_per_team(self) -> int:
@@ -118,7 +124,7 @@ class EnvConfig:
 NETWORK_ACTIONS = (2, 12)
 # Fields added after config version 2 whose default is all that older versions knew: filled
 # without a warning.
-_SILENT_DEFAULTS = ("learner.network.actions", "learner.env.physics")
+_SILENT_DEFAULTS = ("learner.network.actions", "learner.env.physics", "learner.env.see_period")
 PHYSICS = ("thesis", "rcss")
 
 
@@ -734,16 +740,37 @@ def validate(config: TrainConfig) -> None:
     _validate_run(config.run)
     validate_learner(config.learner)
     if config.learner.env.physics == "rcss":
-        # Both play the simulator's handcrafted teams, whose players give 2-value actions.
-        for flag, value in (("run.eval_teams", config.run.eval_teams),
-                            ("run.write_gif", config.run.write_gif)):
-            _require(
-                not value,
-                f"{flag}={value!r} is invalid with env.physics='rcss': it plays the "
-                "simulator's handcrafted teams, which give the 2-value action; leave it out "
-                "(--run.eval-teams with no team, --run.no-write-gif) and evaluate the team in "
-                "rcssserver (elevens robocup match)",
-            )
+        # The GIF plays the simulator's handcrafted teams, whose players give 2-value actions.
+        _require(
+            not config.run.write_gif,
+            "run.write_gif=True is invalid with env.physics='rcss': the GIF's game is against "
+            "the simulator's handcrafted teams, which give the 2-value action; leave it out "
+            "(--run.no-write-gif)",
+        )
+    _check_team_actions("run.eval_teams", config.run.eval_teams, config.learner)
+
+
+def game_actions(learner: LearnerConfig) -> int:
+    """Action values the simulator's game of ``learner`` takes from a team: 2, (move, rot);
+    12 with env.physics rcss, the thesis's RoboCup action."""
+    return 12 if learner.env.physics == "rcss" else 2
+
+
+def _check_team_actions(flag: str, specs: Any, learner: LearnerConfig) -> None:
+    """Handcrafted teams among ``specs`` must give the action the game takes: the simulator's
+    2-value one, or with env.physics rcss the 12-value one (rcss_naive). Trained teams are
+    checked when they load."""
+    from elevens.teams.registry import HANDCRAFTED, action_size, handcrafted_for
+
+    actions = game_actions(learner)
+    for spec in specs if isinstance(specs, tuple) else ():
+        team = HANDCRAFTED.get(spec) if isinstance(spec, str) else None
+        _require(
+            team is None or action_size(team) == actions,
+            f"{flag} team {spec!r} gives {action_size(team) if team else 0} action values, "
+            f"but env.physics={learner.env.physics!r} takes {actions}: the handcrafted teams "
+            f"for it are {', '.join(handcrafted_for(actions))}",
+        )
 
 
 def validate_learner(learner: LearnerConfig) -> None:
@@ -774,6 +801,17 @@ def _validate_env(env: EnvConfig) -> None:
     _require(
         env.physics in PHYSICS,
         f"env.physics={env.physics!r} is invalid: allowed values are {PHYSICS}",
+    )
+    _require(
+        isinstance(env.see_period, int) and env.see_period >= 1,
+        f"env.see_period={env.see_period!r} is invalid: cycles between two sees, an integer "
+        "of at least 1",
+    )
+    _require(
+        env.see_period == 1 or env.physics == "rcss",
+        f"env.see_period={env.see_period!r} is invalid with env.physics={env.physics!r}: the "
+        "simulator's own game observes every step; see periods are rcssserver's (env.physics "
+        "rcss)",
     )
 
 
@@ -1008,6 +1046,7 @@ def _validate_opponent_mix(learner: LearnerConfig) -> None:
         not learner.env.mix,
         "opponent.mix is invalid with env.mix: mixed sizes play one opponent per chunk",
     )
+    _check_team_actions("opponent.mix", tuple(specs), learner)
 
 
 def _validate_run(run: RunConfig) -> None:

@@ -49,6 +49,7 @@ from elevens.train import opponents as opp
 from elevens.train import parallel, ppo
 from elevens.train.config import (
     LearnerConfig,
+    game_actions,
     opponent_mix,
     self_play_games,
     validate_learner,
@@ -449,11 +450,6 @@ def make_learner(
             "(move, rot) action; a 12-value policy trains in rcssserver (elevens robocup "
             "train) or in the simulator with the server's bodies (--env.physics rcss)"
         )
-    if rcss and len(opponent_mix(config)) > 1:
-        raise ValueError(
-            f"opponent.mix={config.opponent.mix!r} is invalid with env.physics='rcss': the "
-            "fixed teams give the 2-value action; train by self-play"
-        )
     if rcss and config.network.actions != 12:
         raise ValueError(
             f"env.physics='rcss' takes the thesis's 12-value action: set network.actions=12, "
@@ -501,7 +497,10 @@ def make_setup(
     loss = functools.partial(ppo.sequence_loss, policy, critic, hp)
     return Setup(
         config=config,
-        env=RcssSoccer(n) if config.env.physics == "rcss" else Soccer(n),
+        env=(
+            RcssSoccer(n, see_period=config.env.see_period)
+            if config.env.physics == "rcss" else Soccer(n)
+        ),
         env_params=env_params,
         policy=policy,
         critic=critic,
@@ -596,7 +595,7 @@ def _fixed_opponents(
     for spec, games in opponent_mix(config)[1:]:
         team = load_team(spec, env_params, "opponent.mix")
         try:
-            team.check_size(n)
+            team.check_size(n, game_actions(config))
         except ValueError as error:
             raise ValueError(f"opponent.mix team {spec!r}: {error}") from error
         fixed.append(FixedOpponent(policy=team.policy, params=team.params, games=games))

@@ -195,6 +195,12 @@ def test_parse_team_takes_exactly_one_of_a_spec_and_a_command() -> None:
             parse_team(spec, cmd, "x")
     with pytest.raises(ValueError, match="empty"):
         parse_team(None, "  ", "x")
+    narrow = parse_team("naive", None, "x", view="narrow")
+    assert narrow == ElevensTeam("naive", "x", view="narrow")
+    command = narrow.command("127.0.0.1", 6000, 11, synch=True)
+    assert command[command.index("--view") + 1] == "narrow"
+    with pytest.raises(ValueError, match="team 'x': view width 'huge' must be one of"):
+        parse_team("naive", None, "x", view="huge")
 
 
 def test_an_external_team_command_gets_the_servers_ports_and_its_name(tmp_path: Path) -> None:

@@ -449,6 +449,52 @@ def test_memory_keeps_the_last_see_and_counts_staleness() -> None:
     ] == pytest.approx(3.0 / 52.5)
 
 
+def test_dead_reckoning_moves_the_pose_and_the_ball_on_between_sees() -> None:
+    from elevens.robocup.protocol import Kick, Turn
+
+    n = 1
+    memory = PerceptMemory(robocup_params(n), ("a", "b"), dead_reckoning=True)
+    memory.reset(np.zeros((2, n, 2)), np.zeros((2, n)))
+    # At (-10, 0) facing +x; the ball 5 m ahead, coming at us at 0.5 m a cycle.
+    memory.update([FakePlayerCycle(0, 1, see(
+        "(see 3 ((f c) 10 0) ((g r) 62.5 0) ((f r t) 72 -28) ((b) 5 0 -0.5 0))"), sense())])
+    assert memory.position[0, 0] == pytest.approx([-10.0, 0.0], abs=0.3)
+    start = memory.position[0, 0].copy()
+    np.testing.assert_allclose(memory.ball[0, 0], start + [5.0, 0.0], atol=0.1)
+    np.testing.assert_allclose(memory.ball_velocity[0, 0], [-0.5, 0.0], atol=0.01)
+    heading = memory.heading[0, 0]
+    assert heading == pytest.approx(0.0, abs=0.01)
+    # A cycle without a see: sense_body's 0.4 m/cycle is a 1 m step (player_decay 0.4).
+    memory.update([FakePlayerCycle(0, 1, None, sense(0.4))])
+    np.testing.assert_allclose(memory.position[0, 0], start + [1.0, 0.0], atol=0.01)
+    obs = memory.observation(1, np.zeros((2, n, 2)), np.zeros((2, n, 2)))
+    distance = obs.self_features[0, 0, S["ball_distance"]] * FIELD_LENGTH
+    assert distance == pytest.approx(5.0 - 0.5 - 1.0, abs=0.1)
+    assert obs.self_features[0, 0, S["ball_vel_forward"]] == pytest.approx(-0.47, abs=0.01)
+    assert obs.self_features[0, 0, S["ball_visible"]] == 1.0
+    # A turn of 90 (clockwise) at 0.4 m/cycle turns 90 / (1 + 5 x 0.4) = 30 degrees.
+    memory.update([FakePlayerCycle(0, 1, None, sense(0.0))], commands={(0, 0): Turn(90.0)})
+    assert memory.heading[0, 0] == pytest.approx(heading - math.pi / 6, abs=1e-9)
+    obs = memory.observation(2, np.zeros((2, n, 2)), np.zeros((2, n, 2)))
+    bearing = math.atan2(obs.self_features[0, 0, S["ball_sin_bearing"]],
+                         obs.self_features[0, 0, S["ball_cos_bearing"]])
+    assert math.degrees(bearing) == pytest.approx(30.0, abs=2.0)
+    assert memory.stale[0, 0] == 2  # still counted from the see: the routines read it
+    # The ball is now within reach: a full kick straight ahead sends it off at the kick rate.
+    memory.ball[0, 0] = memory.position[0, 0] + 0.8 * np.array(
+        [math.cos(memory.heading[0, 0]), math.sin(memory.heading[0, 0])]
+    )
+    memory.ball_velocity[0, 0] = 0.0
+    memory.update([FakePlayerCycle(0, 1, None, sense(0.0))], commands={(0, 0): Kick(100.0, 0.0)})
+    gap = 0.8 - 0.3 - 0.085
+    rate = 0.027 * (1.0 - 0.25 * gap / 0.7)
+    assert np.linalg.norm(memory.ball_velocity[0, 0]) == pytest.approx(100 * rate * 0.94)
+    # A player without dead reckoning holds its see (test above); a see resets the estimates.
+    memory.update([FakePlayerCycle(0, 1, see("(see 9 ((f c) 10 0) ((g r) 62.5 0) "
+                                             "((f r t) 72 -28))"), sense())])
+    assert not memory.ball_known[0, 0] and not memory.mask[0, 0, -1]
+
+
 def test_start_positions_are_normalised_in_the_team_frame() -> None:
     n = 1
     memory = memory_for(n, ("a", "b"))

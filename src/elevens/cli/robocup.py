@@ -113,6 +113,16 @@ class RoboCupMatchArgs:
     """Left elevens team: turn moment in degrees at rot = 1 (22.9: the simulator's rate)."""
     team1_turn_scale: float = 180.0
     """Right elevens team, as --team0-turn-scale."""
+    team0_view: str = "wide"
+    """Left elevens team's view width: "wide" (180 degrees, a see every 3rd cycle), "normal"
+    (120, every 2nd) or "narrow" (60, every cycle)."""
+    team1_view: str = "wide"
+    """Right elevens team, as --team0-view."""
+    team0_dead_reckoning: bool = False
+    """Left elevens team: move the pose and the ball estimate on between sees (elevens
+    robocup team --dead-reckoning)."""
+    team1_dead_reckoning: bool = False
+    """Right elevens team, as --team0-dead-reckoning."""
     matches: int = 1
     """Matches to play (a new server for each)."""
     players: int = 11
@@ -198,6 +208,12 @@ class RoboCupTeamArgs:
     goalie catch)."""
     turn_scale: float = 180.0
     """Turn moment in degrees at rot = 1 (22.9 turns at the simulator's rate)."""
+    view: str = "wide"
+    """View width: "wide" (180 degrees, a see every 3rd cycle: the simulator's field of view),
+    "normal" (120, every 2nd) or "narrow" (60, every cycle)."""
+    dead_reckoning: bool = False
+    """Between two sees, move each player's pose and ball estimate on by its own commands and
+    sense_body (and the ball by its decay), instead of holding the last see."""
     json: bool = False
     """Print the result as one JSON object."""
 
@@ -301,9 +317,10 @@ def match(args: RoboCupMatchArgs) -> None:
     binary = find_rcssserver(args.rcssserver)
     try:
         team0 = parse_team(args.team0 if args.team0_cmd is None else None, args.team0_cmd,
-                           args.team0_name, turn_scale=args.team0_turn_scale)
+                           args.team0_name, turn_scale=args.team0_turn_scale,
+                           view=args.team0_view)
         team1 = parse_team(args.team1, args.team1_cmd, args.team1_name,
-                           turn_scale=args.team1_turn_scale)
+                           turn_scale=args.team1_turn_scale, view=args.team1_view)
         if args.team0_name == args.team1_name:
             raise ValueError(
                 f"--team0-name and --team1-name are both {args.team0_name!r}: the server "
@@ -368,6 +385,7 @@ def team(args: RoboCupTeamArgs) -> None:
     player = RoboCupTeam(
         args.team, players_per_team=args.players, team_name=args.team_name,
         synch=not args.real_time, rules=not args.no_rules, turn_scale=args.turn_scale,
+        view=args.view, dead_reckoning=args.dead_reckoning,
     )
     seconds = player.warm_up()
     if not args.json:

@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from elevens.robocup.external import read_text, start_team, stop_team, wait_connected
+from elevens.robocup.protocol import ChangeView
 from elevens.robocup.server import ServerProcess
 
 __all__ = [
@@ -73,13 +74,16 @@ class ElevensTeam:
     spec: str
     name: str = "elevens"
     turn_scale: float = 180.0
+    view: str = "wide"
+    dead_reckoning: bool = False
 
     def command(self, host: str, port: int, players: int, synch: bool) -> list[str]:
         args = [
             sys.executable, "-m", "elevens", "robocup", "team", "--team", self.spec,
             "--host", host, "--port", str(port), "--team-name", self.name,
-            "--players", str(players), "--turn-scale", str(self.turn_scale), "--json",
-        ]
+            "--players", str(players), "--turn-scale", str(self.turn_scale),
+            "--view", self.view, "--json",
+        ] + (["--dead-reckoning"] if self.dead_reckoning else [])
         return args + ([] if synch else ["--real-time"])
 
 
@@ -295,7 +299,9 @@ def play_matches(
 
 
 def parse_team(
-    spec: str | None, cmd: str | None, name: str, *, turn_scale: float = 180.0
+    spec: str | None, cmd: str | None, name: str, *, turn_scale: float = 180.0,
+    view: str = "wide",
+    dead_reckoning: bool = False,
 ) -> Team:
     """--teamN / --teamN-cmd / --teamN-name as a Team; exactly one of spec and cmd."""
     if (spec is None) == (cmd is None):
@@ -308,4 +314,8 @@ def parse_team(
             raise ValueError("the team's start command is empty")
         return ExternalTeam(cmd, name)
     assert spec is not None
-    return ElevensTeam(spec, name, turn_scale)
+    try:
+        ChangeView(view)
+    except ValueError as error:
+        raise ValueError(f"team {name!r}: {error}") from None
+    return ElevensTeam(spec, name, turn_scale, view, dead_reckoning)

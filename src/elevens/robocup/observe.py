@@ -34,6 +34,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from elevens.env.params import EnvParams
+from elevens.env.rcss import DEFAULT as RCSS_BODY
 from elevens.env.state import (
     ENTITY_FEATURES,
     NUM_ENTITY_FEATURES,
@@ -43,7 +44,7 @@ from elevens.env.state import (
     State,
 )
 from elevens.robocup.localize import localize
-from elevens.robocup.protocol import GlobalView, SeeMessage, SeenObject, SenseBody
+from elevens.robocup.protocol import GlobalView, Kick, SeeMessage, SeenObject, SenseBody, Turn
 
 __all__ = [
     "FIELD_LENGTH",
@@ -209,6 +210,12 @@ class SeenEntities:
         self.dropped = dropped
 
 
+def _rotate(forward: float, left: float, angle: float) -> np.ndarray:
+    """A vector given in a frame turned ``angle`` radians (CCW), in the outer frame."""
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([c * forward - s * left, s * forward + c * left])
+
+
 def _own_velocity(sense_body: SenseBody | None) -> tuple[float, float]:
     """Own velocity (post-decay, as the server reports it) in the player's frame (fwd, left)."""
     if sense_body is None or sense_body.speed_dir is None:
@@ -359,11 +366,19 @@ class PerceptMemory:
         params: EnvParams,
         team_names: tuple[str, str],
         player_decay: float = PLAYER_DECAY,
+        dead_reckoning: bool = False,
     ) -> None:
         n = params.players_per_team
         self.params = params
         self.team_names = team_names
         self.player_decay = player_decay
+        self.dead_reckoning = dead_reckoning
+        # Dead reckoning's estimates, team frame: the ball where the player last saw it, rolled
+        # on a cycle at a time, and the player's own speed at its last sense_body.
+        self.ball = np.zeros((2, n, 2))
+        self.ball_velocity = np.zeros((2, n, 2))  # m/cycle, as the see reports it (post-decay)
+        self.ball_known = np.zeros((2, n), bool)
+        self.speed = np.zeros((2, n))
         self.position = np.zeros((2, n, 2))  # metres, team frame
         self.heading = np.zeros((2, n))  # radians, team frame
         self.pose_valid = np.zeros((2, n), bool)
@@ -386,16 +401,30 @@ class PerceptMemory:
         self.stale[:] = 0
         self.ball_distance[:] = np.inf
         self.dropped = 0
+        self.ball_known[:] = False
+        self.speed[:] = 0.0
 
-    def update(self, players: Sequence[PlayerPercepts], *, advance: bool = True) -> None:
+    def update(
+        self,
+        players: Sequence[PlayerPercepts],
+        *,
+        advance: bool = True,
+        commands: dict[tuple[int, int], Any] | None = None,
+    ) -> None:
         """Take in one cycle's percepts. ``advance``: a server cycle passed (stale + 1 for all
-        players without a see this cycle)."""
+        players without a see this cycle). ``commands``: the body command each player sent
+        in the cycle that passed, by (team, unum - 1), for dead reckoning (turns and kicks)."""
         n = self.params.players_per_team
         if advance:
             self.stale += 1
         for player in players:
             team, i = player.side, player.unum - 1
-            if not (team in (0, 1) and 0 <= i < n) or player.see is None:
+            if not (team in (0, 1) and 0 <= i < n):
+                continue
+            if player.see is None:
+                if self.dead_reckoning and advance:
+                    command = None if commands is None else commands.get((team, i))
+                    self._reckon(team, i, player.sense_body, command)
                 continue
             see, sense = player.see, player.sense_body
             seen = entities_from_see(
@@ -418,6 +447,85 @@ class PerceptMemory:
             if pose is not None:
                 self.position[team, i] = pose[:2]
                 self.heading[team, i] = pose[2]
+            if self.dead_reckoning:
+                self.speed[team, i] = math.hypot(*_own_velocity(sense))
+                self._sight_ball(team, i)
+
+    # -- dead reckoning: between sees, the pose and the ball move on as the server moves them --
+
+    def _sight_ball(self, team: int, i: int) -> None:
+        """The ball of this cycle's see, in the team frame (from the pose), to roll on."""
+        self.ball_known[team, i] = bool(self.mask[team, i, -1])
+        if not self.ball_known[team, i]:
+            return
+        row = self.entities[team, i, -1]
+        distance = float(row[0]) * float(self.params.field_length)
+        heading = self.heading[team, i]
+        bearing = heading + math.atan2(float(row[2]), float(row[1]))
+        self.ball[team, i] = self.position[team, i] + distance * np.array(
+            [math.cos(bearing), math.sin(bearing)]
+        )
+        self.ball_velocity[team, i] = _rotate(float(row[3]), float(row[4]), heading)
+
+    def _reckon(
+        self, team: int, i: int, sense: SenseBody | None, command: Any
+    ) -> None:
+        """One cycle without a see: the command's turn and kick, the move sense_body reports
+        (its velocity is the cycle's displacement times player_decay), the ball rolled on with
+        ball_decay; the ball's entity features recomputed from the new estimates."""
+        body = RCSS_BODY
+        heading, position = self.heading[team, i], self.position[team, i].copy()
+        if isinstance(command, Turn):
+            moment = max(-180.0, min(180.0, command.moment))
+            turned = -math.radians(moment) / (1.0 + body.inertia_moment * self.speed[team, i])
+            heading = math.remainder(heading + turned, 2 * math.pi)
+        if isinstance(command, Kick) and self.ball_known[team, i]:
+            self._kick(team, i, command, position, self.heading[team, i])
+        forward, left = _own_velocity(sense)
+        self.speed[team, i] = math.hypot(forward, left)
+        position = position + _rotate(forward, left, heading) / self.player_decay
+        self.heading[team, i], self.position[team, i] = heading, position
+        if not self.ball_known[team, i]:
+            return
+        self.ball[team, i] = self.ball[team, i] + self.ball_velocity[team, i]
+        self.ball_velocity[team, i] = self.ball_velocity[team, i] * body.ball_decay
+        offset = self.ball[team, i] - position
+        distance = math.hypot(*offset)
+        bearing = math.remainder(math.atan2(offset[1], offset[0]) - heading, 2 * math.pi)
+        ball_velocity = self.ball_velocity[team, i]
+        velocity = _rotate(float(ball_velocity[0]), float(ball_velocity[1]), -heading)
+        self.entities[team, i, -1, :5] = (
+            distance / float(self.params.field_length), math.cos(bearing), math.sin(bearing),
+            velocity[0], velocity[1],
+        )
+        # As in a see: in the view cone only; a close ball counts for kicking either way.
+        self.mask[team, i, -1] = abs(bearing) <= float(self.params.fov_half_angle)
+        self.ball_distance[team, i] = distance
+
+    def _kick(
+        self, team: int, i: int, kick: Kick, position: np.ndarray, heading: float
+    ) -> None:
+        """rcssserver's kick (``elevens.env.rcss.kick_acceleration``) on the ball estimate."""
+        body = RCSS_BODY
+        offset = self.ball[team, i] - position
+        gap = math.hypot(*offset) - body.player_size - body.ball_size
+        if gap > body.kickable_margin:
+            return
+        angle = abs(math.degrees(math.remainder(math.atan2(offset[1], offset[0]) - heading,
+                                                2 * math.pi)))
+        rate = body.kick_power_rate * (
+            1.0 - 0.25 * angle / 180.0 - 0.25 * max(gap, 0.0) / body.kickable_margin
+        )
+        power = max(0.0, min(body.max_power, kick.power))
+        accel = min(power * rate, body.ball_accel_max)
+        direction = heading - math.radians(max(-180.0, min(180.0, kick.direction)))
+        velocity = self.ball_velocity[team, i] + accel * np.array(
+            [math.cos(direction), math.sin(direction)]
+        )
+        speed = math.hypot(*velocity)
+        if speed > body.ball_speed_max:
+            velocity = velocity * (body.ball_speed_max / speed)
+        self.ball_velocity[team, i] = velocity
 
     def observation(
         self, step: int, last_actions: np.ndarray, start_positions: np.ndarray

@@ -86,8 +86,10 @@ class RoboCupTeam:
         deterministic: bool = True,
         turn_scale: float = 180.0,
         seed: int = 0,
+        dead_reckoning: bool = False,
     ) -> None:
         self.spec = spec
+        self.dead_reckoning = dead_reckoning
         self.config = RoboCupConfig(
             players_per_team=players_per_team,
             view=view,
@@ -196,7 +198,9 @@ class RoboCupTeam:
         step_hook: Callable[[int], None] | None,
     ) -> TeamResult:
         n = self.n
-        memory = PerceptMemory(self.params, client.team_names, PLAYER_DECAY)
+        memory = PerceptMemory(
+            self.params, client.team_names, PLAYER_DECAY, dead_reckoning=self.dead_reckoning
+        )
         positions = np.zeros((2, n, 2))
         positions[side] = kick_off_positions(n, taker=False)
         memory.reset(positions, np.zeros((2, n)))
@@ -214,9 +218,10 @@ class RoboCupTeam:
         cycle = client.step([ChangeView(self.config.view)] * n)
         cycle = client.step([None] * n)  # real time: the sensors queued while connecting
         setup_late = client.stats.stale_thinks
+        sent: dict[tuple[int, int], Command | None] = {}
         try:
             while max_cycles is None or counts["cycles"] < max_cycles:
-                memory.update(cycle.players)
+                memory.update(cycle.players, commands=sent)
                 mode = cycle.play_mode
                 if mode_kind(mode, side) == "over":
                     ended = "time_over"
@@ -234,6 +239,7 @@ class RoboCupTeam:
                 else:
                     routines.clock += 1
                 cycle = client.step(commands)
+                sent = {(side, i): command for i, command in enumerate(commands)}
                 counts["cycles"] += 1
                 counts["missed"] += cycle.missed
         except ServerDied:

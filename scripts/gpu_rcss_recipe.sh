@@ -1,0 +1,30 @@
+#!/bin/bash
+# 11 v 11 in the simulator with rcssserver's bodies (env.physics rcss) for a fixed number of
+# minutes, sized for one GPU (issue 18; docs/results/robocup.md, session 19). Starts from INIT
+# (a run, a checkpoint or an exported team with helios-ft12's networks), plays half of its
+# games against rcss_naive (MIX=0 for self-play only, which also allows MIX2V2) and the rest
+# against itself, with the server's see timing (SEE=3) or fresh observations (SEE=1).
+#   R=/tmp/gpuruns INIT=docs/results/robocup_teams/rcss-gpu MIN=8 bash scripts/gpu_rcss_recipe.sh
+# With OUT set (the device tool's output folder), the run directory is packed into
+# $OUT/rcss.tgz. Then, here: elevens robocup match --team0 $R/rcss --team1-cmd "$H ..."
+set -eu
+PY=${PY:-python3}
+R=${R:-/tmp/gpuruns}
+MIX=${MIX:-0.5}
+if [ "$MIX" = "0" ]; then
+  opponents="${MIX2V2:+--env.mix 2v2 --env.mix-shares $MIX2V2}"
+else
+  opponents="--opponent.mix rcss_naive=$MIX"
+fi
+$PY -m elevens train 11v11 --env.physics rcss --network.actions 12 --network.features 64 \
+  --network.num-heads 4 --network.lstm-features 32 --network.lstm-layers 2 \
+  --env.field-length 105 --env.field-width 68 --env.goal-width 14.02 --env.ball-friction 0.94 \
+  --env.ball-max-speed 3 --env.see-period "${SEE:-3}" \
+  --run.init-from "${INIT:-docs/results/robocup_teams/rcss-gpu}" $opponents \
+  --games-per-iteration "${G:-128}" --ppo.minibatch-size "${MB:-352}" \
+  --ppo.learning-rate 3e-4 --ppo.advantage-estimator gae --ppo.normalize-advantages \
+  --ppo.entropy-weight 1e-3 --opponent.polyak-tau 0.05 --env.no-shaping-schedule \
+  --iterations-per-chunk "${CHUNK:-5}" --run.checkpoint-every 20 --run.keep-checkpoints 6 \
+  --run.iterations 1000000 --run.eval-teams --run.no-write-gif \
+  --run.max-minutes "${MIN:-8}" --run.run-dir "$R/rcss"
+if [ -n "${OUT:-}" ]; then (cd "$R" && tar czf "$OUT/rcss.tgz" rcss); fi

@@ -228,6 +228,20 @@ def test_tournament_command_prints_and_writes_the_table(tmp_path, capsys) -> Non
         assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_12_value_teams_play_their_tournament_with_the_servers_bodies(tmp_path) -> None:
+    tournament = eval_main([
+        "tournament", "rcss_naive", "again=rcss_naive", "--games", "4", "--players", "1",
+        "--steps", "60", "--out", str(tmp_path / "rcss"), "--bootstrap", "0",
+        "--see-period", "3",
+    ])
+    assert tournament.table.names == ("rcss_naive", "again")
+    # The same team on both sides of a mirrored field: each pair's outcomes sum to one.
+    assert tournament.table.mean[0, 1] + tournament.table.mean[1, 0] == pytest.approx(1.0)
+    with pytest.raises(ValueError, match="rcss_naive give the 12-value .* and naive the"):
+        eval_main(["tournament", "naive", "rcss_naive", "--games", "2", "--players", "1",
+                   "--out", str(tmp_path / "mixed")])
+
+
 @pytest.mark.slow
 def test_handcrafted_tournament_bar_11v11() -> None:
     # The bar: 3 handcrafted teams, 11 v 11, 500 games a pair, in under 10 minutes.

@@ -52,6 +52,10 @@ class TournamentArgs:
     """Checkpoints play tanh(mean) (True) or sample (False); default: each run's setting."""
     chunk_size: int = 128
     """Games vmapped together (memory vs speed)."""
+    see_period: int = 1
+    """Teams of the 12-value RoboCup action (rcss_naive, runs trained with --env.physics
+    rcss) play the simulator with rcssserver's bodies; there, cycles between two sees (1:
+    fresh observations; 3: the server's wide view)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -153,29 +157,49 @@ def _env(
     return elevens.make(f"{players}v{players}", **overrides)
 
 
-def _load_teams(specs: tuple[str, ...], players: int, deterministic: bool | None) -> list[Any]:
+def _load_teams(specs: tuple[str, ...], deterministic: bool | None) -> list[Any]:
     import dataclasses as dc
 
-    from elevens.runs.teams import check_team_size, load_team, unique_names
+    from elevens.runs.teams import load_team, unique_names
 
     teams = [load_team(spec, deterministic=deterministic) for spec in specs]
-    for team in teams:
-        check_team_size(team, players)
     names = unique_names(teams)
     return [dc.replace(team, name=name) for team, name in zip(teams, names, strict=True)]
 
 
 def _teams_and_env(
     groups: tuple[tuple[str, ...], ...], players: int, steps: int | None,
-    deterministic: bool | None,
+    deterministic: bool | None, see_period: int | None = None,
 ) -> tuple[list[list[Any]], Any, Any]:
     """Load each group of team specs, and the game on the field the checkpoints trained on
-    (SPEC.md's when all are handcrafted), with the handcrafted teams told that field."""
-    from elevens.runs.teams import common_field, fit_to_field
+    (SPEC.md's when all are handcrafted), with the handcrafted teams told that field. With
+    ``see_period`` (the tournament) teams that all give the 12-value action play the simulator
+    with rcssserver's bodies (its field unless the checkpoints trained on another)."""
+    from elevens.env.rcss import RcssSoccer
+    from elevens.runs.teams import check_team_size, common_field, fit_to_field
 
-    loaded = [_load_teams(group, players, deterministic) for group in groups]
-    field = common_field([team for group in loaded for team in group])
-    env, params = _env(players, steps, field)
+    loaded = [_load_teams(group, deterministic) for group in groups]
+    every = [team for group in loaded for team in group]
+    kinds = {team.actions for team in every}
+    if see_period is not None and len(kinds) > 1:
+        twelve = ", ".join(team.name for team in every if team.actions == 12)
+        two = ", ".join(team.name for team in every if team.actions != 12)
+        raise ValueError(
+            f"{twelve} give the 12-value RoboCup action (the simulator with rcssserver's "
+            f"bodies) and {two} the simulator's 2-value one: a tournament plays one game, "
+            "so give teams of one kind"
+        )
+    rcss = see_period is not None and kinds == {12}
+    for team in every:
+        check_team_size(team, players, 12 if rcss else 2)
+    field = common_field(every)
+    if rcss:
+        env = RcssSoccer(players, see_period=see_period or 1)
+        params = env.default_params(
+            **field, **({} if steps is None else {"episode_length": steps})
+        )
+    else:
+        env, params = _env(players, steps, field)
     return [[fit_to_field(team, params) for team in group] for group in loaded], env, params
 
 
@@ -192,7 +216,7 @@ def tournament_command(args: TournamentArgs) -> Any:
         raise ValueError(f"games={args.games} is invalid: it must be >= 1")
     console = Console()
     (teams,), env, params = _teams_and_env(
-        (args.teams,), args.players, args.steps, args.deterministic
+        (args.teams,), args.players, args.steps, args.deterministic, args.see_period
     )
     began = time.perf_counter()
 

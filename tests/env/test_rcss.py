@@ -3,6 +3,7 @@ with its noise switched off."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Iterator
 from typing import Any
@@ -293,6 +294,66 @@ def test_with_a_see_period_players_act_on_their_last_see_and_jit_agrees() -> Non
         np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-5)
     with pytest.raises(ValueError, match="see_period=0 is invalid"):
         rcss.RcssSoccer(2, see_period=0)
+
+
+def _server_stamina(cycles: int, power: float) -> list[tuple[float, float, float]]:
+    """rcssserver's Player::dash and updateStamina, step by step, with the elevens pacing
+    rule in front: (stamina, effort, power paid) after each cycle of full dashes."""
+    p = rcss.DEFAULT
+    stamina, effort, recovery, capacity = 8000.0, 1.0, 1.0, 130600.0
+    out = []
+    for cycle in range(cycles):
+        spare = max(stamina - 3000.0, 0.0) + capacity / (3000 - cycle % 3000)
+        need = min(min(power, spare), stamina + p.extra_stamina)
+        paid_effort = effort
+        stamina = max(0.0, stamina - need)
+        if stamina <= 0.3 * 8000:
+            recovery = max(recovery - 0.002, 0.5)
+            effort = max(effort - 0.005, 0.6)
+        if stamina >= 0.6 * 8000:
+            effort = min(effort + 0.01, 1.0)
+        gain = min(recovery * 45.0, 8000.0 - stamina, capacity)
+        stamina, capacity = stamina + gain, capacity - gain
+        out.append((stamina, paid_effort, need))
+    return out
+
+
+def test_with_stamina_full_dashes_tire_the_players_as_in_the_server() -> None:
+    env = rcss.RcssSoccer(1, stamina=True)
+    params = env.default_params(episode_length=200)
+    state, _ = env.reset(jax.random.key(0), params)
+    assert float(state.stamina.stamina[0]) == 8000.0
+    dash = jnp.zeros((2, 1, 12)).at[0, :, 0].set(1.0).at[0, :, 5].set(1.0)  # team 0 dashes
+    dash = dash.at[1, :, 4].set(1.0)  # team 1 does nothing
+    step = jax.jit(env.transition)
+    expected = _server_stamina(150, 100.0)
+    speeds = []
+    for t in range(150):
+        state, *_ = step(jax.random.key(t), state, dash, params)
+        np.testing.assert_allclose(state.stamina.stamina[0], expected[t][0], rtol=1e-5)
+        speeds.append(float(jnp.linalg.norm(state.velocities[0])))
+    # 55 a cycle net: the reserve (3000) is reached after about 90 cycles; then the rule
+    # allows what recovery brings back (about 45), so the stamina stays above the 2400 where
+    # effort would fall for good. (Velocities as the server reports them: after the decay.)
+    assert expected[80][2] == 100.0 and expected[120][2] < 50.0
+    assert min(stamina for stamina, _, _ in expected) > 2400.0
+    assert float(state.stamina.effort[0]) == 1.0
+    assert speeds[60] == pytest.approx(0.4, abs=0.03)
+    # The paced dash is slower: from rest, 10 cycles at the paced power cover less ground.
+    tired = dataclasses.replace(state, velocities=jnp.zeros_like(state.velocities),
+                                positions=jnp.zeros_like(state.positions))
+    rested = dataclasses.replace(tired, stamina=rcss.Stamina.full(2))
+    for t in range(10):
+        tired, *_ = step(jax.random.key(t), tired, dash, params)
+        rested, *_ = step(jax.random.key(t), rested, dash, params)
+    assert float(tired.positions[0, 0]) < 0.6 * float(rested.positions[0, 0])
+    # The other team stood still: it kept its stamina. A new episode starts fresh.
+    assert float(state.stamina.stamina[1]) == 8000.0
+    fresh, _ = env.reset(jax.random.key(1), params)
+    assert float(fresh.stamina.stamina[0]) == 8000.0
+    without = rcss.RcssSoccer(1)
+    plain, _ = without.reset(jax.random.key(0), params)
+    assert plain.stamina is None
 
 
 def test_a_kick_into_the_goal_scores_and_respawns() -> None:

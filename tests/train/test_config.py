@@ -468,6 +468,7 @@ def test_rcss_physics_takes_the_12_value_action_and_its_own_handcrafted_team() -
     saved = make_config("quickstart").to_dict()
     del saved["learner"]["env"]["physics"]
     del saved["learner"]["env"]["see_period"]
+    del saved["learner"]["env"]["stamina"]
     import warnings
 
     with warnings.catch_warnings():

@@ -85,3 +85,9 @@ def test_a_see_period_is_the_servers_only() -> None:
         validate(tiny_config(**{"env.see_period": 3}))
     with pytest.raises(ValueError, match="env.see_period=0 is invalid"):
         validate(tiny_config(**{**RCSS, "env.see_period": 0}))
+
+
+def test_stamina_is_the_servers_only() -> None:
+    validate(tiny_config(**{**RCSS, "env.stamina": True}))
+    with pytest.raises(ValueError, match="env.stamina=True is invalid with env.physics='thesis'"):
+        validate(tiny_config(**{"env.stamina": True}))

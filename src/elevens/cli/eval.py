@@ -56,6 +56,8 @@ class TournamentArgs:
     """Teams of the 12-value RoboCup action (rcss_naive, runs trained with --env.physics
     rcss) play the simulator with rcssserver's bodies; there, cycles between two sees (1:
     fresh observations; 3: the server's wide view)."""
+    stamina: bool = False
+    """Teams of the 12-value RoboCup action: their players tire as in rcssserver."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -169,7 +171,7 @@ def _load_teams(specs: tuple[str, ...], deterministic: bool | None) -> list[Any]
 
 def _teams_and_env(
     groups: tuple[tuple[str, ...], ...], players: int, steps: int | None,
-    deterministic: bool | None, see_period: int | None = None,
+    deterministic: bool | None, see_period: int | None = None, stamina: bool = False,
 ) -> tuple[list[list[Any]], Any, Any]:
     """Load each group of team specs, and the game on the field the checkpoints trained on
     (SPEC.md's when all are handcrafted), with the handcrafted teams told that field. With
@@ -194,7 +196,7 @@ def _teams_and_env(
         check_team_size(team, players, 12 if rcss else 2)
     field = common_field(every)
     if rcss:
-        env = RcssSoccer(players, see_period=see_period or 1)
+        env = RcssSoccer(players, see_period=see_period or 1, stamina=stamina)
         params = env.default_params(
             **field, **({} if steps is None else {"episode_length": steps})
         )
@@ -216,7 +218,8 @@ def tournament_command(args: TournamentArgs) -> Any:
         raise ValueError(f"games={args.games} is invalid: it must be >= 1")
     console = Console()
     (teams,), env, params = _teams_and_env(
-        (args.teams,), args.players, args.steps, args.deterministic, args.see_period
+        (args.teams,), args.players, args.steps, args.deterministic, args.see_period,
+        args.stamina,
     )
     began = time.perf_counter()
 

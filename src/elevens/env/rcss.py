@@ -32,6 +32,7 @@ from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
+from flax import struct
 
 from elevens.env import physics
 from elevens.env.params import EnvParams
@@ -77,6 +78,17 @@ class RcssParams(NamedTuple):
     dash_angle_step: float = 1.0
     max_power: float = 100.0
     extra_stamina: float = 50.0
+    stamina_max: float = 8000.0
+    stamina_inc_max: float = 45.0
+    stamina_capacity: float = 130600.0
+    recover_dec_thr: float = 0.3
+    recover_dec: float = 0.002
+    recover_min: float = 0.5
+    effort_dec_thr: float = 0.3
+    effort_dec: float = 0.005
+    effort_min: float = 0.6
+    effort_inc_thr: float = 0.6
+    effort_inc: float = 0.01
 
     @property
     def kickable_distance(self) -> float:
@@ -130,6 +142,72 @@ def dash_stamina(
     power = jnp.clip(power, 0.0, params.max_power)
     paid = jnp.minimum(power, stamina + params.extra_stamina)
     return paid, jnp.maximum(0.0, stamina - paid)
+
+
+STAMINA_RESERVE = 3000.0
+"""Stamina an elevens player keeps for itself: above it a player dashes as its policy asks
+(``elevens.robocup.rules.pace_dashes``, the rule every elevens team plays the server with)."""
+HALF_CYCLES = 3000
+"""server::half_time x 10: each half restores the players' stamina capacity."""
+
+
+@struct.dataclass
+class Stamina:
+    """Each player's stamina as rcssserver keeps it (``Player::updateStamina``), f32[2n]."""
+
+    stamina: jax.Array
+    effort: jax.Array
+    recovery: jax.Array
+    capacity: jax.Array
+
+    @classmethod
+    def full(cls, num_players: int, params: RcssParams = DEFAULT) -> Stamina:
+        ones = jnp.ones(num_players, jnp.float32)
+        return cls(
+            stamina=params.stamina_max * ones, effort=ones, recovery=ones,
+            capacity=params.stamina_capacity * ones,
+        )
+
+
+def paced_power(
+    power: jax.Array, stamina: Stamina, cycle: jax.Array
+) -> jax.Array:
+    """The elevens routines' stamina rule (``elevens.robocup.rules.pace_dashes``): a dash
+    spends the stamina above ``STAMINA_RESERVE`` freely and, beyond it, the capacity spread
+    evenly over the cycles left in the half."""
+    cycles_left = HALF_CYCLES - jnp.mod(cycle, HALF_CYCLES)
+    spare = jnp.maximum(stamina.stamina - STAMINA_RESERVE, 0.0) + stamina.capacity / cycles_left
+    return jnp.minimum(power, spare)
+
+
+def recover(stamina: Stamina, params: RcssParams = DEFAULT) -> Stamina:
+    """The end of a cycle (``Player::updateStamina``): recovery and effort fall while the
+    stamina is low, effort comes back while it is high, and recovery x stamina_inc_max flows
+    from the capacity into the stamina."""
+    top = params.stamina_max
+    low_recovery = stamina.stamina <= params.recover_dec_thr * top
+    recovery = jnp.where(
+        low_recovery, jnp.maximum(stamina.recovery - params.recover_dec, params.recover_min),
+        stamina.recovery,
+    )
+    effort = jnp.where(
+        stamina.stamina <= params.effort_dec_thr * top,
+        jnp.maximum(stamina.effort - params.effort_dec, params.effort_min),
+        stamina.effort,
+    )
+    effort = jnp.where(
+        stamina.stamina >= params.effort_inc_thr * top,
+        jnp.minimum(effort + params.effort_inc, 1.0),
+        effort,
+    )
+    gain = jnp.minimum(recovery * params.stamina_inc_max, top - stamina.stamina)
+    gain = jnp.minimum(gain, stamina.capacity)
+    return Stamina(
+        stamina=jnp.minimum(stamina.stamina + gain, top),
+        effort=effort,
+        recovery=recovery,
+        capacity=jnp.maximum(stamina.capacity - gain, 0.0),
+    )
 
 
 def turn(
@@ -368,9 +446,14 @@ class RcssSoccer(Soccer):
     """
 
     def __init__(
-        self, players_per_team: int = 11, body: RcssParams = DEFAULT, see_period: int = 1
+        self,
+        players_per_team: int = 11,
+        body: RcssParams = DEFAULT,
+        see_period: int = 1,
+        stamina: bool = False,
     ):
         super().__init__(players_per_team)
+        self.stamina = stamina
         if not isinstance(see_period, int) or see_period < 1:
             raise ValueError(
                 f"see_period={see_period!r} is invalid: cycles between a player's sees, an "
@@ -384,6 +467,8 @@ class RcssSoccer(Soccer):
         state, obs = super().reset(key, params)
         if self.see_period > 1:
             state = dataclasses.replace(state, held_observation=obs)
+        if self.stamina:
+            state = dataclasses.replace(state, stamina=Stamina.full(self.num_players, self.body))
         return state, obs
 
     def observe(self, state: State, params: EnvParams) -> Observation:
@@ -447,9 +532,19 @@ class RcssSoccer(Soccer):
             turn(body, command.turn_moment, state.velocities, b),
             body,
         )
+        dashes = command.kind == DASH
+        power, effort = command.dash_power, jnp.ones(self.num_players)
+        tank = None
+        if self.stamina:
+            tank = state.stamina if state.stamina is not None else Stamina.full(
+                self.num_players, b
+            )
+            paid, left = dash_stamina(paced_power(power, tank, state.step), tank.stamina, b)
+            power, effort = paid, tank.effort
+            tank = dataclasses.replace(tank, stamina=jnp.where(dashes, left, tank.stamina))
         dash = jnp.where(
-            (command.kind == DASH)[:, None],
-            dash_acceleration(command.dash_power, command.dash_direction, body, 1.0, b),
+            dashes[:, None],
+            dash_acceleration(power, command.dash_direction, body, effort, b),
             0.0,
         )
         positions, velocities = advance(
@@ -480,4 +575,6 @@ class RcssSoccer(Soccer):
         )
         if self.see_period > 1:
             new_state = self._held(state, new_state, params)
+        if tank is not None:  # a goal's kick-off does not restore stamina; reset does
+            new_state = dataclasses.replace(new_state, stamina=recover(tank, b))
         return new_state, rewards, done, info

@@ -64,6 +64,9 @@ class State:
     held_observation: Any = None
     """The observation the players act on when they do not see every step (RcssSoccer with
     ``see_period`` > 1: each player's last see); None where observations are fresh."""
+    stamina: Any = None
+    """Each player's stamina (``elevens.env.rcss.Stamina``) in RcssSoccer with ``stamina``;
+    None where players never tire."""
 
     @property
     def num_players(self) -> int:

@@ -105,6 +105,10 @@ class EnvConfig:
     --env.ball-friction 0.94 --env.ball-max-speed 3``). Its handcrafted team is
     ``rcss_naive`` (for ``run.eval_teams`` and ``opponent.mix``); the simulator's own
     handcrafted teams give the 2-value action and cannot play it."""
+    stamina: bool = False
+    """With physics "rcss": players tire as in rcssserver (stamina, effort, recovery and
+    capacity; ``elevens.env.rcss.Stamina``) and pace their dashes by the rule every elevens
+    team plays the server with (``elevens.robocup.rules.pace_dashes``)."""
     see_period: int = 1
     """With physics "rcss": cycles between two sees of a player. 1: a fresh observation every
     step; 3: rcssserver's wide view in synch mode, as ``elevens robocup`` plays (each player
@@ -124,7 +128,10 @@ class EnvConfig:
 NETWORK_ACTIONS = (2, 12)
 # Fields added after config version 2 whose default is all that older versions knew: filled
 # without a warning.
-_SILENT_DEFAULTS = ("learner.network.actions", "learner.env.physics", "learner.env.see_period")
+_SILENT_DEFAULTS = (
+    "learner.network.actions", "learner.env.physics", "learner.env.see_period",
+    "learner.env.stamina",
+)
 PHYSICS = ("thesis", "rcss")
 
 
@@ -806,6 +813,11 @@ def _validate_env(env: EnvConfig) -> None:
         isinstance(env.see_period, int) and env.see_period >= 1,
         f"env.see_period={env.see_period!r} is invalid: cycles between two sees, an integer "
         "of at least 1",
+    )
+    _require(
+        not env.stamina or env.physics == "rcss",
+        f"env.stamina=True is invalid with env.physics={env.physics!r}: the simulator's own "
+        "players never tire; stamina is rcssserver's (env.physics rcss)",
     )
     _require(
         env.see_period == 1 or env.physics == "rcss",

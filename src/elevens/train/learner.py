@@ -498,7 +498,7 @@ def make_setup(
     return Setup(
         config=config,
         env=(
-            RcssSoccer(n, see_period=config.env.see_period)
+            RcssSoccer(n, see_period=config.env.see_period, stamina=config.env.stamina)
             if config.env.physics == "rcss" else Soccer(n)
         ),
         env_params=env_params,

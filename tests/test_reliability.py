@@ -77,7 +77,7 @@ FLAGS: dict[str, tuple[str, ...]] = {
     "play": ("players", "seed", "steps", "fps", "scale", "view"),
     "bench env": ("players", "batch", "steps", "repeats", "loop_steps", "host_devices"),
     "bench train": ("players", "episode_length", "repeats"),
-    "tournament": ("games", "players", "seed", "steps", "bootstrap", "chunk_size"),
+    "tournament": ("games", "players", "seed", "steps", "bootstrap", "chunk_size", "see_period"),
     "analyze": ("games", "players", "seed", "steps", "replays", "chunk_size"),
     "render": ("fps", "scale", "view"),
     "robocup play": ("players", "episodes", "steps", "seed"),

@@ -46,6 +46,7 @@ NUMERIC_RANGES: dict[str, tuple[float, float]] = {
     "host_devices": (1, math.inf),
     "episode_length": (1, math.inf),
     "chunk_size": (1, math.inf),
+    "see_period": (1, math.inf),
     "bootstrap": (0, math.inf),
     "replays": (0, math.inf),
     "fps": (1, math.inf),

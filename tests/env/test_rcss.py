@@ -356,6 +356,77 @@ def test_with_stamina_full_dashes_tire_the_players_as_in_the_server() -> None:
     assert plain.stamina is None
 
 
+def test_with_the_goalie_routine_a_goalie_holds_a_shot_and_clears_it_up_the_wing() -> None:
+    env = rcss.RcssSoccer(2, goalie=True)
+    params = env.default_params(episode_length=50)
+    state, _ = env.reset(jax.random.key(0), params)
+    # Team 1's goalie (player 2) on its goal line at (50, 0) facing the field (-x); a shot
+    # from team 0 arrives 1 m in front of it at 2 m a cycle, heading for the goal.
+    positions = np.array(state.positions)
+    positions[2] = (50.0, 0.0)
+    headings = np.array(state.headings)
+    headings[2] = math.pi
+    shot = dataclasses.replace(
+        state, positions=jnp.asarray(positions), headings=jnp.asarray(headings),
+        ball_position=jnp.asarray([49.0, -0.5]), ball_velocity=jnp.asarray([2.0, 0.0]),
+    )
+    nothing = jnp.zeros((2, 2, 12)).at[..., 4].set(1.0)
+    step = jax.jit(env.transition)
+    caught, *_ = step(jax.random.key(1), shot, nothing, params)
+    assert caught.score.tolist() == [0, 0]
+    # Cleared at full kick speed (2.7 m a cycle, then decayed) towards team 1's attacking half
+    # and the wing on the ball's side (y -0.5 in world is +0.5 in team 1's frame: y = -24).
+    velocity = np.asarray(caught.ball_velocity)
+    assert np.linalg.norm(velocity) == pytest.approx(2.7 * 0.94, rel=1e-3)
+    assert velocity[0] < 0 and velocity[1] < 0
+    def goals_after(game: rcss.RcssSoccer, start: Any, cycles: int = 6) -> list[int]:
+        move = jax.jit(game.transition)
+        for t in range(cycles):
+            start, *_ = move(jax.random.key(t), start, nothing, params)
+        return start.score.tolist()
+
+    assert goals_after(env, caught) == [0, 0]
+    # Without hands the same shot goes in; with hands, one 2 m wide of the goalie too.
+    assert goals_after(rcss.RcssSoccer(2), shot) == [1, 0]
+    wide = dataclasses.replace(shot, ball_position=jnp.asarray([49.0, -2.0]))
+    assert goals_after(env, wide) == [1, 0]
+    # Outside its penalty area the goalie cannot catch.
+    away = positions.copy()
+    away[2] = (30.0, 0.0)
+    far = dataclasses.replace(shot, positions=jnp.asarray(away),
+                              ball_position=jnp.asarray([29.0, -0.5]))
+    loose, *_ = step(jax.random.key(1), far, nothing, params)
+    assert np.asarray(loose.ball_velocity)[0] > 0  # rolls on towards the goal
+
+
+def test_the_goalie_routine_keeps_the_goalie_between_the_ball_and_its_goal() -> None:
+    env = rcss.RcssSoccer(1, goalie=True)
+    params = env.default_params(episode_length=80)
+    state, _ = env.reset(jax.random.key(0), params)
+    # Team 0's goalie starts off its line, facing away; the ball waits at (-20, 15), outside
+    # the penalty area. Whatever its policy asks (a full dash ahead), it turns to the ball and
+    # takes its guard point: a quarter of the ball's distance (8 m at most) along the line from
+    # its goal's centre to the ball.
+    state = dataclasses.replace(
+        state,
+        positions=jnp.asarray([[-40.0, -10.0], [40.0, 0.0]]),
+        headings=jnp.asarray([math.pi, 0.0]),
+        ball_position=jnp.asarray([-20.0, 15.0]),
+        ball_velocity=jnp.zeros(2),
+    )
+    run = jnp.zeros((2, 1, 12)).at[..., 0].set(1.0).at[..., 5].set(1.0)
+    step = jax.jit(env.transition)
+    for t in range(40):
+        state, *_ = step(jax.random.key(t), state, run, params)
+    goal = np.array([-52.5, 0.0])
+    to_ball = np.array([-20.0, 15.0]) - goal
+    guard = goal + to_ball / np.linalg.norm(to_ball) * 8.0
+    np.testing.assert_allclose(state.positions[0], guard, atol=1.0)
+    facing = np.array([math.cos(float(state.headings[0])), math.sin(float(state.headings[0]))])
+    toward = (np.array([-20.0, 15.0]) - np.asarray(state.positions[0]))
+    assert facing @ toward / np.linalg.norm(toward) > math.cos(math.radians(26.0))
+
+
 def test_a_kick_into_the_goal_scores_and_respawns() -> None:
     from tests.env.helpers import build_state
 

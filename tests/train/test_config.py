@@ -469,6 +469,7 @@ def test_rcss_physics_takes_the_12_value_action_and_its_own_handcrafted_team() -
     del saved["learner"]["env"]["physics"]
     del saved["learner"]["env"]["see_period"]
     del saved["learner"]["env"]["stamina"]
+    del saved["learner"]["env"]["goalie"]
     import warnings
 
     with warnings.catch_warnings():

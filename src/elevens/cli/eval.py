@@ -58,6 +58,9 @@ class TournamentArgs:
     fresh observations; 3: the server's wide view)."""
     stamina: bool = False
     """Teams of the 12-value RoboCup action: their players tire as in rcssserver."""
+    goalie: bool = False
+    """Teams of the 12-value RoboCup action: each goalie guards its goal and catches as the
+    elevens routines play it in rcssserver."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -172,6 +175,7 @@ def _load_teams(specs: tuple[str, ...], deterministic: bool | None) -> list[Any]
 def _teams_and_env(
     groups: tuple[tuple[str, ...], ...], players: int, steps: int | None,
     deterministic: bool | None, see_period: int | None = None, stamina: bool = False,
+    goalie: bool = False,
 ) -> tuple[list[list[Any]], Any, Any]:
     """Load each group of team specs, and the game on the field the checkpoints trained on
     (SPEC.md's when all are handcrafted), with the handcrafted teams told that field. With
@@ -196,7 +200,7 @@ def _teams_and_env(
         check_team_size(team, players, 12 if rcss else 2)
     field = common_field(every)
     if rcss:
-        env = RcssSoccer(players, see_period=see_period or 1, stamina=stamina)
+        env = RcssSoccer(players, see_period=see_period or 1, stamina=stamina, goalie=goalie)
         params = env.default_params(
             **field, **({} if steps is None else {"episode_length": steps})
         )
@@ -219,7 +223,7 @@ def tournament_command(args: TournamentArgs) -> Any:
     console = Console()
     (teams,), env, params = _teams_and_env(
         (args.teams,), args.players, args.steps, args.deterministic, args.see_period,
-        args.stamina,
+        args.stamina, args.goalie,
     )
     began = time.perf_counter()
 

@@ -210,6 +210,100 @@ def recover(stamina: Stamina, params: RcssParams = DEFAULT) -> Stamina:
     )
 
 
+CATCHABLE_AREA_L = 1.2
+"""server::catchable_area_l: how far along the catch direction a goalie's hands reach."""
+PENALTY_AREA = (16.5, 20.16)
+"""server::penalty_area_length and half its width (40.32 / 2): where a goalie may catch."""
+CLEARANCE_POWER = 100.0
+"""The elevens set-piece routine's kick after a catch: full power up the wing
+(``elevens.robocup.rules._set_piece_kick``)."""
+
+
+def goalie_catch(
+    state: State, params: EnvParams, body: RcssParams = DEFAULT
+) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """The goalie's catch and the restart that follows it in an elevens team's match, in one
+    cycle: (caught bool[], where the ball restarts f32[2], its velocity f32[2]).
+
+    Each team's goalie (its player 0) catches as the elevens routines make it
+    (``elevens.robocup.rules``): the ball within ``CATCHABLE_AREA_L`` of it and in front of
+    its body (the server's catch directions are +-90 degrees), the goalie inside its penalty
+    area. The server then gives the goalie's team a free kick, and the routine kicks the ball
+    at full power up the nearer wing (to (ball x + 30, +-24) in the team's frame, x at most
+    40): here the ball restarts at the goalie's feet with the velocity that kick gives it, at
+    once (the opponents' waiting and the goalie's few cycles to the kick are left out)."""
+    n = state.positions.shape[0] // 2
+    goalies = jnp.array([0, n])
+    half_length = params.half_length
+    goalie = state.positions[goalies]  # [2, 2] world
+    heading = state.headings[goalies]
+    direction = jnp.array([1.0, -1.0])  # each team's attacking direction along world x
+    offset = state.ball_position[None, :] - goalie
+    distance = jnp.sqrt(jnp.sum(offset * offset, axis=-1))
+    forward = jnp.stack([jnp.cos(heading), jnp.sin(heading)], axis=-1)
+    in_front = jnp.sum(offset * forward, axis=-1) >= 0.0
+    own_x = goalie[:, 0] * direction  # team frame: own goal line at -half_length
+    in_area = (own_x <= -half_length + PENALTY_AREA[0]) & (
+        jnp.abs(goalie[:, 1]) <= PENALTY_AREA[1]
+    )
+    catches = (distance <= CATCHABLE_AREA_L) & in_front & in_area
+    team = jnp.argmax(catches)  # the ball is in one penalty area at most
+    ball_x = state.ball_position[0] * direction[team]
+    wing_y = jnp.where(state.ball_position[1] * direction[team] >= 0.0, 24.0, -24.0)
+    target = jnp.stack([jnp.minimum(ball_x + 30.0, 40.0), wing_y]) * direction[team]
+    aim = target - goalie[team]
+    aim = aim / jnp.maximum(jnp.sqrt(jnp.sum(aim * aim)), 1e-6)
+    speed = jnp.minimum(CLEARANCE_POWER * body.kick_power_rate, body.ball_accel_max)
+    return jnp.any(catches), goalie[team], speed * aim
+
+
+GUARD_DEPTH = (1.5, 8.0)
+"""As ``elevens.robocup.rules.GUARD_DEPTH``: the goalie's distance from its goal's centre,
+a quarter of the ball's, within these bounds."""
+_FACE_BALL = 25.0  # degrees: the goalie turns to a ball further off its body than this
+_GUARD_SLACK = 0.7  # metres from its guard point within which it only faces the ball
+
+
+def goalie_guard(commands: Commands, state: State, params: EnvParams) -> Commands:
+    """Each team's goalie (player 0) guards its goal as ``elevens.robocup.rules.guard_goal``
+    makes it in rcssserver, in place of its policy's command: it faces the ball and keeps to
+    the line from its goal's centre to the ball, closer as the ball comes, and goes for a
+    ball inside its penalty area (where ``goalie_catch`` takes it). The true ball stands in
+    for the routine's nearest sighting."""
+    n = state.positions.shape[0] // 2
+    goalies = jnp.array([0, n])
+    direction = jnp.array([1.0, -1.0])[:, None]  # world -> each team's frame (a point reflection)
+    goalie = state.positions[goalies]
+    heading = state.headings[goalies]
+    ball_team = state.ball_position[None, :] * direction  # [2, 2]
+    goal = jnp.array([-params.half_length, 0.0])
+    from_goal = ball_team - goal
+    distance = jnp.sqrt(jnp.sum(from_goal * from_goal, axis=-1, keepdims=True))
+    depth = jnp.clip(0.25 * distance, *GUARD_DEPTH)
+    in_area = (ball_team[:, :1] <= -params.half_length + PENALTY_AREA[0]) & (
+        jnp.abs(ball_team[:, 1:]) <= PENALTY_AREA[1]
+    )
+    target = jnp.where(in_area, ball_team, goal + from_goal / jnp.maximum(distance, 1e-6) * depth)
+    offset = target * direction - goalie  # world
+    gap = jnp.sqrt(jnp.sum(offset * offset, axis=-1))
+    to_ball = state.ball_position[None, :] - goalie
+
+    def clockwise(vector: jax.Array) -> jax.Array:
+        """Degrees clockwise from the body to ``vector`` (the server's sign)."""
+        relative = jnp.arctan2(vector[:, 1], vector[:, 0]) - heading
+        return -jnp.degrees(jnp.arctan2(jnp.sin(relative), jnp.cos(relative)))
+
+    bearing = clockwise(to_ball)
+    step = (jnp.abs(bearing) <= _FACE_BALL) & (gap > _GUARD_SLACK)
+    kind = jnp.where(step, DASH, TURN)
+    return commands._replace(
+        kind=commands.kind.at[goalies].set(kind),
+        dash_power=commands.dash_power.at[goalies].set(jnp.minimum(100.0, 30.0 * gap + 20.0)),
+        dash_direction=commands.dash_direction.at[goalies].set(clockwise(offset)),
+        turn_moment=commands.turn_moment.at[goalies].set(bearing),
+    )
+
+
 def turn(
     body: jax.Array,
     moment_deg: jax.Array,
@@ -451,9 +545,11 @@ class RcssSoccer(Soccer):
         body: RcssParams = DEFAULT,
         see_period: int = 1,
         stamina: bool = False,
+        goalie: bool = False,
     ):
         super().__init__(players_per_team)
         self.stamina = stamina
+        self.goalie = goalie
         if not isinstance(see_period, int) or see_period < 1:
             raise ValueError(
                 f"see_period={see_period!r} is invalid: cycles between a player's sees, an "
@@ -526,6 +622,8 @@ class RcssSoccer(Soccer):
         b = self.body
         flat = applied_actions(actions.reshape(self.num_players, ACTION_SIZE).astype(jnp.float32))
         command = decode_thesis12(flat)
+        if self.goalie:
+            command = goalie_guard(command, state, params)
         body = state.headings
         headings = jnp.where(
             command.kind == TURN,
@@ -564,7 +662,13 @@ class RcssSoccer(Soccer):
         # The kicks' sum pushes the ball; roll_ball then moves it, decays it
         # (params.ball_friction) and scores or bounces it.
         ball_velocity = push(state.ball_velocity, kick, b.ball_accel_max, b.ball_speed_max)
-        ball = physics.roll_ball(state.ball_position, ball_velocity, params)
+        ball_start = state.ball_position
+        if self.goalie:
+            caught, ball_start, clearance = goalie_catch(state, params, b)
+            ball_velocity = jnp.where(caught, clearance, ball_velocity)
+            ball_start = jnp.where(caught, ball_start, state.ball_position)
+            kicks = kicks & ~caught
+        ball = physics.roll_ball(ball_start, ball_velocity, params)
         positions, velocities, ball_position, ball_velocity = collide(
             positions, velocities, ball.position, ball.velocity, b
         )

@@ -109,6 +109,11 @@ class EnvConfig:
     """With physics "rcss": players tire as in rcssserver (stamina, effort, recovery and
     capacity; ``elevens.env.rcss.Stamina``) and pace their dashes by the rule every elevens
     team plays the server with (``elevens.robocup.rules.pace_dashes``)."""
+    goalie: bool = False
+    """With physics "rcss": each team's goalie (player 0) plays as the elevens routines play
+    it in rcssserver instead of by the policy: it guards its goal, catches a ball in reach
+    inside its penalty area and clears it up the wing (``elevens.env.rcss.goalie_guard``,
+    ``goalie_catch``)."""
     see_period: int = 1
     """With physics "rcss": cycles between two sees of a player. 1: a fresh observation every
     step; 3: rcssserver's wide view in synch mode, as ``elevens robocup`` plays (each player
@@ -130,7 +135,7 @@ NETWORK_ACTIONS = (2, 12)
 # without a warning.
 _SILENT_DEFAULTS = (
     "learner.network.actions", "learner.env.physics", "learner.env.see_period",
-    "learner.env.stamina",
+    "learner.env.stamina", "learner.env.goalie",
 )
 PHYSICS = ("thesis", "rcss")
 
@@ -813,6 +818,11 @@ def _validate_env(env: EnvConfig) -> None:
         isinstance(env.see_period, int) and env.see_period >= 1,
         f"env.see_period={env.see_period!r} is invalid: cycles between two sees, an integer "
         "of at least 1",
+    )
+    _require(
+        not env.goalie or env.physics == "rcss",
+        f"env.goalie=True is invalid with env.physics={env.physics!r}: the simulator's own "
+        "keeper has no hands; the goalie's routine is rcssserver's (env.physics rcss)",
     )
     _require(
         not env.stamina or env.physics == "rcss",

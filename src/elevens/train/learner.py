@@ -498,7 +498,10 @@ def make_setup(
     return Setup(
         config=config,
         env=(
-            RcssSoccer(n, see_period=config.env.see_period, stamina=config.env.stamina)
+            RcssSoccer(
+                n, see_period=config.env.see_period, stamina=config.env.stamina,
+                goalie=config.env.goalie,
+            )
             if config.env.physics == "rcss" else Soccer(n)
         ),
         env_params=env_params,

@@ -3,7 +3,8 @@
 # minutes, sized for one GPU (issue 18; docs/results/robocup.md, session 19). Starts from INIT
 # (a run, a checkpoint or an exported team with helios-ft12's networks), plays half of its
 # games against rcss_naive (MIX=0 for self-play only, which also allows MIX2V2) and the rest
-# against itself, with the server's see timing (SEE=3) or fresh observations (SEE=1).
+# against itself, with the server's see timing (SEE=3) or fresh observations (SEE=1), and the
+# server's stamina and the elevens goalie routine (RULES=1; RULES=0 leaves both out).
 #   R=/tmp/gpuruns INIT=docs/results/robocup_teams/rcss-gpu MIN=8 bash scripts/gpu_rcss_recipe.sh
 # With OUT set (the device tool's output folder), the run directory is packed into
 # $OUT/rcss.tgz. Then, here: elevens robocup match --team0 $R/rcss --team1-cmd "$H ..."
@@ -11,6 +12,8 @@ set -eu
 PY=${PY:-python3}
 R=${R:-/tmp/gpuruns}
 MIX=${MIX:-0.5}
+rules=""
+if [ "${RULES:-1}" = "1" ]; then rules="--env.stamina --env.goalie"; fi
 if [ "$MIX" = "0" ]; then
   opponents="${MIX2V2:+--env.mix 2v2 --env.mix-shares $MIX2V2}"
 else
@@ -19,7 +22,7 @@ fi
 $PY -m elevens train 11v11 --env.physics rcss --network.actions 12 --network.features 64 \
   --network.num-heads 4 --network.lstm-features 32 --network.lstm-layers 2 \
   --env.field-length 105 --env.field-width 68 --env.goal-width 14.02 --env.ball-friction 0.94 \
-  --env.ball-max-speed 3 --env.see-period "${SEE:-3}" \
+  --env.ball-max-speed 3 --env.see-period "${SEE:-3}" $rules \
   --run.init-from "${INIT:-docs/results/robocup_teams/rcss-gpu}" $opponents \
   --games-per-iteration "${G:-128}" --ppo.minibatch-size "${MB:-352}" \
   --ppo.learning-rate 3e-4 --ppo.advantage-estimator gae --ppo.normalize-advantages \

@@ -13,11 +13,13 @@ and turns follow the server's. These are those rules, transcribed from rcssserve
 
 :class:`RcssSoccer` is the simulator's game with these bodies and the thesis's 12-value RoboCup
 action (table 4.1; ``elevens.robocup.actions`` sends the same values to the server), so a
-policy trained in it gives what an elevens team in rcssserver gives. Not modelled yet: stamina,
-tackles, the goalie's catch, the referee (the ball bounces off the lines as in the simulator)
-and see noise; collisions are resolved in one pass where the server repeats it while anything
-still overlaps. The see's timing is an option (``see_period``: with 3, each player acts on its
-last see, as the bridge's players do in the wide view).
+policy trained in it gives what an elevens team in rcssserver gives. Options bring in more of
+the server's match: ``see_period`` (with 3 each player acts on its last see, as the bridge's
+players do in the wide view), ``stamina`` (the server's stamina model with the elevens pacing
+rule) and ``goalie`` (each goalie guards and catches as the elevens routines play it). Not
+modelled: tackles, the referee (the ball bounces off the lines as in the simulator) and the
+server's noise; collisions are resolved in one pass where the server repeats it while anything
+still overlaps.
 
 Frames: the simulator's world frame (metres, y up, headings in radians counter-clockwise).
 Command arguments are the server's: powers 0..100 and directions in degrees, clockwise, relative
@@ -44,8 +46,13 @@ __all__ = [
     "Commands",
     "RcssParams",
     "RcssSoccer",
+    "Stamina",
     "decode_thesis12",
     "encode_thesis12",
+    "goalie_catch",
+    "goalie_guard",
+    "paced_power",
+    "recover",
     "rcss_field",
     "advance",
     "dash_acceleration",

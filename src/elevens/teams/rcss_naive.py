@@ -22,13 +22,11 @@ import math
 import jax
 import jax.numpy as jnp
 
-from elevens.env.rcss import DASH, DEFAULT, KICK, TURN, Commands, encode_thesis12
+from elevens.env.rcss import DASH, DEFAULT, KICK, TURN, Commands, encode_thesis12, rcss_field
 from elevens.env.state import Observation
 from elevens.teams.scripted import BallMemory, Field, _wrap, read_view
 
-RCSS_FIELD = Field(
-    half_length=52.5, half_width=34.0, goal_half_width=7.01, ball_friction=DEFAULT.ball_decay
-)
+RCSS_FIELD = Field.of(rcss_field())
 """rcssserver's field and ball (``elevens.env.rcss.rcss_field``)."""
 
 

@@ -43,24 +43,9 @@ def resolve_team(name: str, params: EnvParams | None = None) -> TeamPolicy:
         ) from None
     if params is None:
         return team
-    if isinstance(team, RcssNaiveTeam):
-        return dataclasses.replace(
-            team,
-            field=dataclasses.replace(
-                team.field,
-                half_length=float(params.half_length),
-                half_width=float(params.half_width),
-                goal_half_width=float(params.goal_width) / 2,
-                ball_friction=float(params.ball_friction),
-            ),
-        )
-    field = Field(
-        half_length=float(params.half_length),
-        half_width=float(params.half_width),
-        goal_half_width=float(params.goal_width) / 2,
-        turn_speed=float(params.turn_speed),
-        ball_friction=float(params.ball_friction),
-    )
+    field = Field.of(params)
+    if isinstance(team, RcssNaiveTeam):  # its default is rcssserver's field, not SPEC.md's
+        return dataclasses.replace(team, field=field)
     if field == Field():
         return team
     if isinstance(team, NaiveTeam):

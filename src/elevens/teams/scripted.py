@@ -17,7 +17,7 @@ they face.
 from __future__ import annotations
 
 import dataclasses
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -72,6 +72,17 @@ class Field:
     """Radians per step at rot = 1 (EnvParams.turn_speed), for one-step heading corrections."""
     ball_friction: float = 0.9
     """Ball velocity multiplier per step (EnvParams.ball_friction), to follow an unseen ball."""
+
+    @classmethod
+    def of(cls, params: Any) -> Field:
+        """The geometry of ``params`` (an ``EnvParams``)."""
+        return cls(
+            half_length=float(params.half_length),
+            half_width=float(params.half_width),
+            goal_half_width=float(params.goal_width) / 2,
+            turn_speed=float(params.turn_speed),
+            ball_friction=float(params.ball_friction),
+        )
 
 
 @struct.dataclass

@@ -264,11 +264,14 @@ def goalie_catch(
     return jnp.any(catches), goalie[team], speed * aim
 
 
+# The goalie's routine, shared with elevens.robocup.rules.guard_goal (its copy for rcssserver).
 GUARD_DEPTH = (1.5, 8.0)
-"""As ``elevens.robocup.rules.GUARD_DEPTH``: the goalie's distance from its goal's centre,
-a quarter of the ball's, within these bounds."""
-_FACE_BALL = 25.0  # degrees: the goalie turns to a ball further off its body than this
-_GUARD_SLACK = 0.7  # metres from its guard point within which it only faces the ball
+"""How far (metres) the goalie stands from the centre of its goal line: the nearer end when the
+ball is far, up to the further one as the ball comes (a quarter of the ball's distance)."""
+GUARD_FACE_BALL = 25.0
+"""Degrees: the goalie turns to a ball further off its body than this."""
+GUARD_SLACK = 0.7
+"""Metres from its guard point within which the goalie stands still."""
 
 
 def goalie_guard(commands: Commands, state: State, params: EnvParams) -> Commands:
@@ -301,7 +304,7 @@ def goalie_guard(commands: Commands, state: State, params: EnvParams) -> Command
         return -jnp.degrees(jnp.arctan2(jnp.sin(relative), jnp.cos(relative)))
 
     bearing = clockwise(to_ball)
-    step = (jnp.abs(bearing) <= _FACE_BALL) & (gap > _GUARD_SLACK)
+    step = (jnp.abs(bearing) <= GUARD_FACE_BALL) & (gap > GUARD_SLACK)
     kind = jnp.where(step, DASH, TURN)
     return commands._replace(
         kind=commands.kind.at[goalies].set(kind),

@@ -38,7 +38,14 @@ from typing import Any
 import numpy as np
 
 from elevens.env.params import formation
-from elevens.env.rcss import HALF_CYCLES, STAMINA_RESERVE
+from elevens.env.rcss import (
+    GUARD_DEPTH,
+    GUARD_FACE_BALL,
+    GUARD_SLACK,
+    HALF_CYCLES,
+    STAMINA_RESERVE,
+)
+from elevens.env.rcss import PENALTY_AREA as RCSS_PENALTY_AREA
 from elevens.robocup.observe import FIELD_LENGTH, FIELD_WIDTH, PerceptMemory
 from elevens.robocup.protocol import Catch, Command, Dash, Kick, Move, Turn
 
@@ -60,7 +67,8 @@ CATCH_REACH = 1.15  # metres: server::catchable_area_l = 1.2, less the see's qua
 SEARCH_TURN = 90.0  # degrees a player turns a cycle in our set piece while nobody sees the ball
 SHOOT_RANGE = 30.0  # metres to the opponent goal within which a set piece is a shot
 KICKABLE = 1.085  # player_size + ball_size + kickable_margin of the default player type
-PENALTY_AREA = (36.0, 20.16)  # |x| from, |y| up to (the penalty box flags)
+# |x| from, |y| up to (the penalty box flags): 36.0, 20.16
+PENALTY_AREA = (FIELD_LENGTH / 2 - RCSS_PENALTY_AREA[0], RCSS_PENALTY_AREA[1])
 _HALF = np.array([FIELD_LENGTH / 2, FIELD_WIDTH / 2])
 _SIM_FIELD = np.array([50.0, 35.0])  # the simulator's default half extents (formation slots)
 _TURN_FIRST = math.radians(12.0)  # a taker further off its line to the ball turns first
@@ -329,11 +337,7 @@ def apply_rules(
 
 
 KINDS_GUARDED = ("play", "theirs", "ours")  # mode kinds in which the goalie guards its goal
-GUARD_DEPTH = (1.5, 8.0)
-"""How far (metres) the goalie stands from the centre of its goal line: the nearer end when the
-ball is far, up to the further one as the ball comes (a quarter of the ball's distance)."""
-_FACE_BALL = math.radians(25.0)  # the goalie turns to the ball when it is further off than this
-_GUARD_SLACK = 0.7  # metres from its guard point within which the goalie stands still
+_FACE_BALL = math.radians(GUARD_FACE_BALL)
 
 
 def _ball_estimate(view: TeamView) -> np.ndarray | None:
@@ -382,7 +386,7 @@ def guard_goal(
     fresh = view.stale[goalie] == 0
     if abs(bearing) > _FACE_BALL:
         out[goalie] = Turn(_degrees_clockwise(bearing)) if fresh else None
-    elif gap > _GUARD_SLACK:
+    elif gap > GUARD_SLACK:
         # Facing the ball, it steps to its point in any direction (the server's omni-dash).
         direction = math.atan2(offset[1], offset[0]) - heading
         out[goalie] = Dash(float(min(100.0, 30.0 * gap + 20.0)), _degrees_clockwise(direction))

@@ -440,11 +440,12 @@ def collide(
 
 # ------------------------------------------------------------------ the 12-value action
 ACTION_SIZE = 12
-# Self features the bridge updates every cycle, between sees too (the rest come from a see).
-_EVERY_CYCLE = [
+EVERY_CYCLE_FEATURES = [
     SELF_FEATURES.index(name)
     for name in ("time_left", "last_move", "last_rot", "start_x", "start_y")
 ]
+"""Self-feature columns the bridge updates every cycle, between sees too (the rest come from a
+see): what a held observation keeps current (here and in ``elevens.robocup.imitate``)."""
 DASH, KICK, TURN, TACKLE, NOOP = range(5)
 
 
@@ -597,7 +598,8 @@ class RcssSoccer(Soccer):
         sees = ((state.step + players) % self.see_period == 0) | (state.step == 0)  # [n]
         sees = jnp.broadcast_to(sees, (2, self.players_per_team))
         features = jnp.where(sees[..., None], fresh.self_features, held.self_features)
-        features = features.at[..., _EVERY_CYCLE].set(fresh.self_features[..., _EVERY_CYCLE])
+        current = EVERY_CYCLE_FEATURES
+        features = features.at[..., current].set(fresh.self_features[..., current])
         return dataclasses.replace(
             state,
             held_observation=Observation(

@@ -42,6 +42,7 @@ import optax
 
 from elevens.env import observe as observe_lib
 from elevens.env.params import EnvParams
+from elevens.env.rcss import EVERY_CYCLE_FEATURES
 from elevens.env.state import ENTITY_FEATURES, SELF_FEATURES, Observation, State
 from elevens.robocup.observe import PLAYER_DECAY
 from elevens.robocup.rules import kick_off_positions
@@ -432,13 +433,11 @@ _observe_batch = jax.jit(jax.vmap(observe_lib.observe, in_axes=(0, None)), stati
 ENTITY_LAST_ACTIONS = slice(
     ENTITY_FEATURES.index("last_move"), ENTITY_FEATURES.index("last_rot") + 1
 )
-_FRESH = [SELF_FEATURES.index(name) for name in
-          ("time_left", "last_move", "last_rot", "start_x", "start_y")]
 
 
 def _stale(obs: Observation, see_period: int) -> Observation:
     """Each player's view held from its latest see (player i sees when (t + i) % period == 0),
-    all but the fresh self features (``_FRESH``)."""
+    all but the fresh self features (``EVERY_CYCLE_FEATURES``)."""
     if see_period == 1:
         return obs
     n, steps = obs.entity_mask.shape[:2]
@@ -446,7 +445,7 @@ def _stale(obs: Observation, see_period: int) -> Observation:
     source = np.maximum(t - (t + np.arange(n)[:, None]) % see_period, 0)  # [n, T]
     rows = np.arange(n)[:, None]
     features = obs.self_features[rows, source].copy()
-    features[..., _FRESH] = obs.self_features[..., _FRESH]
+    features[..., EVERY_CYCLE_FEATURES] = obs.self_features[..., EVERY_CYCLE_FEATURES]
     return Observation(
         self_features=features,
         entities=obs.entities[rows, source],

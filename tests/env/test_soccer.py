@@ -68,6 +68,8 @@ def test_make_scenarios_and_errors():
         ({"spawn": "anywhere"}, "spawn"),
         ({"ball_spawn": "corner"}, "ball_spawn"),
         ({"kick_impulse": float("nan")}, "kick_impulse"),
+        ({"possession_radius": 0.0}, "possession_radius"),
+        ({"possession_shaping_weight": -0.01}, "possession_shaping_weight"),
     ],
 )
 def test_impossible_params_name_the_field(overrides, field):
@@ -171,7 +173,9 @@ def test_ten_thousand_random_steps_stay_finite_and_consistent():
     diff = goals[..., 0] - goals[..., 1]
     np.testing.assert_allclose(goal_reward[..., 0, :], np.repeat(diff[..., None], 11, -1))
     np.testing.assert_allclose(goal_reward[..., 1, :], -goal_reward[..., 0, :])
-    total = np.asarray(infos.goal_reward + infos.ball_shaping + infos.approach_shaping)
+    total = np.asarray(
+        infos.goal_reward + infos.ball_shaping + infos.approach_shaping + infos.possession_shaping
+    )
     np.testing.assert_allclose(np.asarray(rewards), total, atol=1e-6)
     assert int(np.asarray(states.step)[-1, 0]) == 400
 

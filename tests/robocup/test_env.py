@@ -7,6 +7,7 @@ integration tests at the end run a real rcssserver and are skipped without one.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import signal
@@ -280,6 +281,26 @@ def test_params_use_the_server_field() -> None:
     wide = robocup_env_params(RoboCupConfig())
     assert wide.fov_half_angle == pytest.approx(math.pi / 2)  # the simulator's field of view
     assert wide.ball_shaping_weight == 0.1 and wide.approach_shaping_weight == 0.05
+    assert wide.possession_shaping_weight == 0.0  # not in the thesis: off unless asked for
+    held = RoboCupConfig(possession_shaping_weight=0.01, possession_radius=1.5)
+    assert robocup_env_params(held).possession_shaping_weight == 0.01
+    assert robocup_env_params(held).possession_radius == 1.5
+    off = robocup_env_params(dataclasses.replace(held, shaping=False))
+    assert off.possession_shaping_weight == 0.0 and off.possession_radius == 1.5
+
+
+def test_robocup_train_passes_the_possession_reward_to_its_servers() -> None:
+    from elevens.robocup.train import _default_env_factory, make_robocup_config
+
+    config = make_robocup_config(**{
+        "env.possession_shaping_weight": 0.005, "env.possession_radius": 3.0,
+    })
+    env = _default_env_factory(config)(0)
+    try:
+        assert env.params.possession_shaping_weight == 0.005
+        assert env.params.possession_radius == 3.0
+    finally:
+        env.close()
 
 
 # ----------------------------------------------------------------------- action rule

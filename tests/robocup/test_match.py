@@ -203,6 +203,22 @@ def test_parse_team_takes_exactly_one_of_a_spec_and_a_command() -> None:
         parse_team("naive", None, "x", view="huge")
 
 
+def test_match_cli_gives_each_elevens_side_its_own_flags() -> None:
+    from elevens.cli.robocup import RoboCupMatchArgs, match_teams
+
+    args = RoboCupMatchArgs(
+        team0="naive", team1="random", team1_name="b", team0_dead_reckoning=True,
+        team1_sample=True, team1_view="narrow",
+    )
+    team0, team1 = match_teams(args)
+    assert team0 == ElevensTeam("naive", "elevens", dead_reckoning=True)
+    assert team1 == ElevensTeam("random", "b", view="narrow", sample=True)
+    command0 = team0.command("127.0.0.1", 6000, 11, synch=True)
+    command1 = team1.command("127.0.0.1", 6000, 11, synch=True)
+    assert "--dead-reckoning" in command0 and "--sample" not in command0
+    assert "--sample" in command1 and "--dead-reckoning" not in command1
+
+
 def test_an_external_team_command_gets_the_servers_ports_and_its_name(tmp_path: Path) -> None:
     output = tmp_path / "out.txt"
     proc = start_team("echo {host} {port} {coach_port} {team}", ServerAddress(7000, 7001, 7002),
@@ -303,3 +319,21 @@ def test_helios_base_plays_a_short_match_against_naive(tmp_path: Path) -> None:
     assert result.names == ("elevens", "HELIOS_base") and result.missed_cycles == 0
     assert result.teams[0] is not None and result.teams[0]["ended"] == "time_over"
     assert result.score[1] >= result.score[0]  # helios-base outplays the naive team
+
+
+def test_a_sampling_team_draws_its_actions_and_a_mean_team_does_not() -> None:
+    """``elevens robocup team --sample`` plays the policy as PPO trained it: two keys, two
+    actions; without it the mean action, whatever the key."""
+    import jax
+
+    from elevens.robocup.observe import PLAYER_DECAY, PerceptMemory
+
+    spec = str(Path(__file__).parents[2] / "docs/results/robocup_teams/rcss-gpu")
+    for deterministic in (True, False):
+        team = RoboCupTeam(spec, players_per_team=2, deterministic=deterministic)
+        memory = PerceptMemory(team.params, team.config.team_names, PLAYER_DECAY)
+        obs = team._observation(memory, 0, 0, np.zeros((2, 2), np.float32))
+        carry = team.player.init_carry(2)
+        drawn = [np.asarray(team.player.act(carry, obs, jax.random.key(k))[1]) for k in (1, 2)]
+        assert drawn[0].shape == (2, 12)
+        assert np.array_equal(drawn[0], drawn[1]) == deterministic

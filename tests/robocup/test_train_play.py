@@ -73,7 +73,8 @@ class SimEnv:
             state, obs = self.reset(seed=99)
             zeros = np.zeros((2, self.players_per_team), np.float32)
             info = {"restarted": True, "goals": np.zeros(2, np.int32), "goal_reward": zeros,
-                    "ball_shaping": zeros, "approach_shaping": zeros, "missed": 0}
+                    "ball_shaping": zeros, "approach_shaping": zeros,
+                    "possession_shaping": zeros, "holder": np.zeros(2, np.float32), "missed": 0}
             return state, obs, zeros, True, info
         self.state, obs, rewards, done, step_info = self._step(
             key, self.state, actions, self.params
@@ -84,6 +85,8 @@ class SimEnv:
             "goal_reward": np.asarray(step_info.goal_reward),
             "ball_shaping": np.asarray(step_info.ball_shaping),
             "approach_shaping": np.asarray(step_info.approach_shaping),
+            "possession_shaping": np.asarray(step_info.possession_shaping),
+            "holder": np.asarray(step_info.holder),
             "missed": 0,
             "malformed": 0,
         }

@@ -321,6 +321,7 @@ class SoccerParallelEnv(ParallelEnv[str, dict[str, np.ndarray], np.ndarray]):
         goal = host.info.goal_reward.reshape(-1)
         ball = host.info.ball_shaping.reshape(-1)
         approach = host.info.approach_shaping.reshape(-1)
+        possession = host.info.possession_shaping.reshape(-1)
         kicks, pushes = host.info.kicks, host.info.pushes
         score = (int(host.score[0]), int(host.score[1]))
         rewards, infos = {}, {}
@@ -331,6 +332,7 @@ class SoccerParallelEnv(ParallelEnv[str, dict[str, np.ndarray], np.ndarray]):
                 "goal_reward": float(goal[i]),
                 "ball_shaping": float(ball[i]),
                 "approach_shaping": float(approach[i]),
+                "possession_shaping": float(possession[i]),
                 "touched": bool(kicks[i] or pushes[i]),
                 "kicked": bool(kicks[i]),
                 "pushed": bool(pushes[i]),

@@ -10,7 +10,7 @@ import json as json_lib
 import sys
 import time
 from dataclasses import asdict, dataclass, replace
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 import tyro
 
@@ -123,6 +123,10 @@ class RoboCupMatchArgs:
     robocup team --dead-reckoning)."""
     team1_dead_reckoning: bool = False
     """Right elevens team, as --team0-dead-reckoning."""
+    team0_sample: bool = False
+    """Left elevens team: play the policy's sampled action (elevens robocup team --sample)."""
+    team1_sample: bool = False
+    """Right elevens team, as --team0-sample."""
     matches: int = 1
     """Matches to play (a new server for each)."""
     players: int = 11
@@ -214,6 +218,11 @@ class RoboCupTeamArgs:
     dead_reckoning: bool = False
     """Between two sees, move each player's pose and ball estimate on by its own commands and
     sense_body (and the ball by its decay), instead of holding the last see."""
+    sample: bool = False
+    """Play the policy's sampled action, as PPO trained it and as the simulator's evaluations
+    and tournaments play it (run.eval_deterministic is off by default), instead of its mean."""
+    seed: int = 0
+    """Seeds the sampled actions (--sample)."""
     json: bool = False
     """Print the result as one JSON object."""
 
@@ -311,16 +320,30 @@ def bench(args: RoboCupBenchArgs) -> None:
     )
 
 
+def match_teams(args: RoboCupMatchArgs) -> tuple[Any, Any]:
+    """The two sides of ``elevens robocup match`` as ``robocup.match`` Teams, each with its
+    own flags (ValueError for a bad side)."""
+    from elevens.robocup.match import parse_team
+
+    team0 = parse_team(
+        args.team0 if args.team0_cmd is None else None, args.team0_cmd, args.team0_name,
+        turn_scale=args.team0_turn_scale, view=args.team0_view,
+        dead_reckoning=args.team0_dead_reckoning, sample=args.team0_sample,
+    )
+    team1 = parse_team(
+        args.team1, args.team1_cmd, args.team1_name, turn_scale=args.team1_turn_scale,
+        view=args.team1_view, dead_reckoning=args.team1_dead_reckoning,
+        sample=args.team1_sample,
+    )
+    return team0, team1
+
+
 def match(args: RoboCupMatchArgs) -> None:
-    from elevens.robocup.match import parse_team, play_matches, summarize
+    from elevens.robocup.match import play_matches, summarize
 
     binary = find_rcssserver(args.rcssserver)
     try:
-        team0 = parse_team(args.team0 if args.team0_cmd is None else None, args.team0_cmd,
-                           args.team0_name, turn_scale=args.team0_turn_scale,
-                           view=args.team0_view)
-        team1 = parse_team(args.team1, args.team1_cmd, args.team1_name,
-                           turn_scale=args.team1_turn_scale, view=args.team1_view)
+        team0, team1 = match_teams(args)
         if args.team0_name == args.team1_name:
             raise ValueError(
                 f"--team0-name and --team1-name are both {args.team0_name!r}: the server "
@@ -385,7 +408,8 @@ def team(args: RoboCupTeamArgs) -> None:
     player = RoboCupTeam(
         args.team, players_per_team=args.players, team_name=args.team_name,
         synch=not args.real_time, rules=not args.no_rules, turn_scale=args.turn_scale,
-        view=args.view, dead_reckoning=args.dead_reckoning,
+        view=args.view, dead_reckoning=args.dead_reckoning, deterministic=not args.sample,
+        seed=args.seed,
     )
     seconds = player.warm_up()
     if not args.json:

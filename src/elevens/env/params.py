@@ -135,6 +135,14 @@ class EnvParams:
     """w_b: weight of the ball's velocity towards the opponent goal (0 switches it off)."""
     approach_shaping_weight: float = 0.05
     """w_a: weight of the player's velocity towards the ball (0 switches it off)."""
+    possession_shaping_weight: float = 0.0
+    """w_p: weight of having the ball, each step: +w_p to every player of the team that has it
+    (``reward.ball_holder``), -w_p to the other team's. Not in the thesis (0: off); it rewards
+    keeping the ball under pressure, the skill that separates helios-base from elevens teams in
+    rcssserver (docs/results/robocup.md). The shaping schedule switches it off with the rest."""
+    possession_radius: float = 2.0
+    """A team has the ball when its nearest player is this near it and nearer than every
+    opponent (metres)."""
 
     def __post_init__(self) -> None:
         self.validate()
@@ -156,10 +164,12 @@ class EnvParams:
         positive = (
             "field_length", "field_width", "goal_width", "player_radius", "ball_radius",
             "move_speed", "turn_speed", "kick_band", "ball_max_speed", "fov_half_angle",
+            "possession_radius",
         )
         non_negative = (
             "leg_reach", "push_impulse", "kick_impulse", "ball_stop_speed", "spawn_noise",
             "heading_noise", "goal_reward", "ball_shaping_weight", "approach_shaping_weight",
+            "possession_shaping_weight",
         )
         unit_interval = ("ball_friction", "wall_restitution", "ball_spawn_fraction")
         values = {name: getattr(self, name) for name in (*positive, *non_negative, *unit_interval)}

@@ -14,15 +14,33 @@ class RewardTerms(NamedTuple):
     goal: jax.Array  # f32[2, n] g
     ball: jax.Array  # f32[2, n] w_b * b
     approach: jax.Array  # f32[2, n] w_a * a
+    possession: jax.Array  # f32[2, n] w_p * p
+    holder: jax.Array  # f32[2] p: +1 for the team that has the ball, -1 for the other, else 0
 
     @property
     def total(self) -> jax.Array:
-        return self.goal + self.ball + self.approach
+        return self.goal + self.ball + self.approach + self.possession
 
 
 def _unit(vector: jax.Array) -> jax.Array:
     norm = jnp.sqrt(jnp.sum(vector * vector, axis=-1, keepdims=True))
     return vector / jnp.maximum(norm, 1e-6)
+
+
+def ball_holder(
+    ball_position: jax.Array, player_positions: jax.Array, params: EnvParams
+) -> jax.Array:
+    """f32[2]: +1 for the team that has the ball, -1 for the other, 0 when neither has it.
+
+    A team has the ball when its player nearest to it is within ``possession_radius`` and
+    nearer than every opponent: a ball under pressure is held only by the nearer team, a free
+    ball by no one. Zero-sum, so the shaping term built on it cannot be won by both teams.
+    """
+    n = params.players_per_team
+    gaps = jnp.sqrt(jnp.sum((player_positions - ball_position) ** 2, axis=-1)).reshape(2, n)
+    nearest = jnp.min(gaps, axis=-1)
+    holds = (nearest <= params.possession_radius) & (nearest < nearest[::-1])
+    return holds.astype(jnp.float32) - holds[::-1].astype(jnp.float32)
 
 
 def reward_terms(
@@ -54,4 +72,9 @@ def reward_terms(
         player_velocities * _unit(ball_position_before - player_positions), axis=-1
     )
     approach = (params.approach_shaping_weight * towards_ball).reshape(2, n)
-    return RewardTerms(goal=goal, ball=ball, approach=approach)
+
+    holder = ball_holder(ball_position, player_positions, params)
+    possession = jnp.broadcast_to((params.possession_shaping_weight * holder)[:, None], (2, n))
+    return RewardTerms(
+        goal=goal, ball=ball, approach=approach, possession=possession, holder=holder
+    )

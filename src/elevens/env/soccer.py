@@ -67,6 +67,8 @@ def finish_step(
         goal_reward=terms.goal,
         ball_shaping=terms.ball,
         approach_shaping=terms.approach,
+        possession_shaping=terms.possession,
+        holder=terms.holder,
         truncated=done,
     )
     return new_state, terms.total, done, info

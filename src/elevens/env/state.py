@@ -112,6 +112,8 @@ class StepInfo:
     goal_reward: jax.Array  # f32[2, n] the goal term g
     ball_shaping: jax.Array  # f32[2, n] w_b * b (ball velocity towards the opponent goal)
     approach_shaping: jax.Array  # f32[2, n] w_a * a (player velocity towards the ball)
+    possession_shaping: jax.Array  # f32[2, n] w_p * p (having the ball)
+    holder: jax.Array  # f32[2] p: +1 for the team that has the ball, -1 for the other, else 0
     truncated: jax.Array  # bool[] the episode ran out of time this step
 
     @property

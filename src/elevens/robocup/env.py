@@ -143,6 +143,10 @@ class RoboCupConfig:
     """EnvParams.ball_shaping_weight (w_b, ball velocity towards the opponent goal)."""
     approach_shaping_weight: float = 0.05
     """EnvParams.approach_shaping_weight (w_a, player velocity towards the ball)."""
+    possession_shaping_weight: float = 0.0
+    """EnvParams.possession_shaping_weight (w_p, having the ball; elevens.env.reward)."""
+    possession_radius: float = 2.0
+    """EnvParams.possession_radius (metres)."""
     action: str = "sim"
     """"sim": f32[2, n, 2] (move, rot) by the rule in the module docstring; "thesis12":
     f32[2, n, 12] (thesis table 4.1, elevens.robocup.actions)."""
@@ -233,6 +237,8 @@ def robocup_env_params(config: RoboCupConfig) -> EnvParams:
         goal_reward=config.goal_reward,
         ball_shaping_weight=config.ball_shaping_weight * shaping,
         approach_shaping_weight=config.approach_shaping_weight * shaping,
+        possession_shaping_weight=config.possession_shaping_weight * shaping,
+        possession_radius=config.possession_radius,
     )
 
 
@@ -376,8 +382,9 @@ class RoboCupEnv:
     ``restarts`` (total), ``missed`` (players whose (think) did not arrive this cycle),
     ``malformed`` (messages dropped this cycle), ``play_mode``, ``score`` i32[2] (this episode,
     team 0 first), ``goals`` i32[2] (this step), ``goal_reward``/``ball_shaping``/
-    ``approach_shaping`` f32[2, n] (the reward terms), ``ball_returned`` (keep_ball_in_play moved
-    the ball back), ``server_time``, ``truncated`` (= done).
+    ``approach_shaping``/``possession_shaping`` f32[2, n] (the reward terms), ``holder`` f32[2]
+    (who has the ball, elevens.env.reward.ball_holder), ``ball_returned`` (keep_ball_in_play
+    moved the ball back), ``server_time``, ``truncated`` (= done).
     """
 
     def __init__(
@@ -488,8 +495,11 @@ class RoboCupEnv:
                 after.positions,
                 self.params,
             )
-        goal_r, ball_r, approach_r = (np.asarray(t, np.float32) for t in terms)
-        rewards = goal_r + ball_r + approach_r
+        goal_r, ball_r, approach_r, possession_r = (
+            np.asarray(t, np.float32)
+            for t in (terms.goal, terms.ball, terms.approach, terms.possession)
+        )
+        rewards = goal_r + ball_r + approach_r + possession_r
         self._state = after
         play_mode = cycle.play_mode
         ball_returned = False
@@ -512,6 +522,8 @@ class RoboCupEnv:
             goal_reward=goal_r,
             ball_shaping=ball_r,
             approach_shaping=approach_r,
+            possession_shaping=possession_r,
+            holder=np.asarray(terms.holder, np.float32),
             ball_returned=ball_returned,
         )
         assert self._state is not None
@@ -873,6 +885,8 @@ class RoboCupEnv:
             goal_reward=zeros,
             ball_shaping=zeros,
             approach_shaping=zeros,
+            possession_shaping=zeros,
+            holder=np.zeros(2, np.float32),
             ball_returned=False,
         )
         assert self._state is not None

@@ -76,6 +76,7 @@ class ElevensTeam:
     turn_scale: float = 180.0
     view: str = "wide"
     dead_reckoning: bool = False
+    sample: bool = False
 
     def command(self, host: str, port: int, players: int, synch: bool) -> list[str]:
         args = [
@@ -83,7 +84,9 @@ class ElevensTeam:
             "--host", host, "--port", str(port), "--team-name", self.name,
             "--players", str(players), "--turn-scale", str(self.turn_scale),
             "--view", self.view, "--json",
-        ] + (["--dead-reckoning"] if self.dead_reckoning else [])
+        ]
+        args += ["--dead-reckoning"] if self.dead_reckoning else []
+        args += ["--sample"] if self.sample else []
         return args + ([] if synch else ["--real-time"])
 
 
@@ -302,6 +305,7 @@ def parse_team(
     spec: str | None, cmd: str | None, name: str, *, turn_scale: float = 180.0,
     view: str = "wide",
     dead_reckoning: bool = False,
+    sample: bool = False,
 ) -> Team:
     """--teamN / --teamN-cmd / --teamN-name as a Team; exactly one of spec and cmd."""
     if (spec is None) == (cmd is None):
@@ -318,4 +322,4 @@ def parse_team(
         ChangeView(view)
     except ValueError as error:
         raise ValueError(f"team {name!r}: {error}") from None
-    return ElevensTeam(spec, name, turn_scale, view, dead_reckoning)
+    return ElevensTeam(spec, name, turn_scale, view, dead_reckoning, sample)

@@ -221,6 +221,8 @@ def _default_env_factory(config: RoboCupTrainConfig) -> EnvFactory:
                 goal_reward=game.goal_reward,
                 ball_shaping_weight=game.ball_shaping_weight,
                 approach_shaping_weight=game.approach_shaping_weight,
+                possession_shaping_weight=game.possession_shaping_weight,
+                possession_radius=game.possession_radius,
                 action=action_mode(config.learner.network.actions),
                 rcssserver=server.rcssserver,
                 opponent_cmd=server.opponent_cmd,
@@ -335,7 +337,7 @@ def play_iteration(
     logs = [_GameLog() for _ in range(num_games)]
     record: dict[str, list[Any]] = {
         name: [] for name in ("obs", "global_state", "pre_tanh", "log_prob", "reward", "done",
-                              "reset", "goal", "ball", "approach")
+                              "reset", "goal", "ball", "approach", "possession", "holder")
     }
     step_keys = jax.random.split(key, (T, 2))
     for t in range(T):
@@ -360,15 +362,18 @@ def play_iteration(
 
         results = run(step_game)
         rewards = np.zeros((num_games, n), np.float32)
-        terms = np.zeros((3, num_games, n), np.float32)
+        terms = np.zeros((4, num_games, n), np.float32)
+        holder = np.zeros(num_games, np.float32)
         done = np.zeros(num_games, bool)
         for g, (state, observation, _, _, info) in enumerate(results):
             side = sides[g]
             goal = np.asarray(info["goal_reward"])[side]
             ball = np.asarray(info["ball_shaping"])[side]
             approach = np.asarray(info["approach_shaping"])[side]
-            terms[:, g] = goal, ball, approach
-            rewards[g] = goal + (ball + approach if shaping_active else 0.0)
+            possession = np.asarray(info["possession_shaping"])[side]
+            terms[:, g] = goal, ball, approach, possession
+            holder[g] = np.asarray(info["holder"])[side]
+            rewards[g] = goal + (ball + approach + possession if shaping_active else 0.0)
             # A restart cuts the episode short; a fresh one starts next step.
             done[g] = logs[g].add(info, side)
             states[g], observations[g] = state, observation
@@ -379,6 +384,7 @@ def play_iteration(
             ("pre_tanh", np.asarray(pre_tanh)), ("log_prob", np.asarray(log_prob)),
             ("reward", rewards), ("done", done.copy()), ("reset", reset.copy()),
             ("goal", terms[0]), ("ball", terms[1]), ("approach", terms[2]),
+            ("possession", terms[3]), ("holder", holder),
         ):
             record[name].append(value)
         reset = done.copy()  # the policy zeroes those rows' memories itself (RecurrentCore)
@@ -425,6 +431,7 @@ def _packed_rollout(
     goal_sum = np.sum(np.stack(record["goal"]), axis=0)  # [G, n]
     ball_sum = np.sum(np.stack(record["ball"]), axis=0)
     approach_sum = np.sum(np.stack(record["approach"]), axis=0)
+    possession_sum = np.sum(np.stack(record["possession"]), axis=0)
     rollout = Rollout(
         transitions=transitions,
         learner_side=jnp.asarray(sides),
@@ -434,6 +441,8 @@ def _packed_rollout(
         goal_reward=jnp.asarray(goal_sum[:, 0]),
         ball_shaping=jnp.asarray(ball_sum[:, 0]),
         approach_shaping=jnp.asarray(approach_sum.mean(axis=-1)),
+        possession_shaping=jnp.asarray(possession_sum[:, 0]),
+        possession=jnp.asarray(np.mean(np.stack(record["holder"]), axis=0)),
     )
     return rollout
 

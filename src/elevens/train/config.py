@@ -135,7 +135,8 @@ NETWORK_ACTIONS = (2, 12)
 # without a warning.
 _SILENT_DEFAULTS = (
     "learner.network.actions", "learner.env.physics", "learner.env.see_period",
-    "learner.env.stamina", "learner.env.goalie",
+    "learner.env.stamina", "learner.env.goalie", "learner.env.game.possession_shaping_weight",
+    "learner.env.game.possession_radius",
 )
 PHYSICS = ("thesis", "rcss")
 

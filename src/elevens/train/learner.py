@@ -145,13 +145,18 @@ def iteration(setup: Setup, state: TrainState) -> tuple[TrainState, Metrics]:
 def collect(setup: Setup, state: TrainState, rollout_key: jax.Array) -> Rollout:
     """1. Algorithm 4 lines 4-11: one episode of every game, shaping as currently in force."""
     env_config = setup.config.env
+    game = env_config.game
     weights = shaping_weights(
-        state.shaping, env_config.game.ball_shaping_weight, env_config.game.approach_shaping_weight
+        state.shaping,
+        game.ball_shaping_weight,
+        game.approach_shaping_weight,
+        game.possession_shaping_weight,
     )
     # The weights are pytree leaves of EnvParams: a new value is not a recompile.
     shaping: dict[str, Any] = {
         "ball_shaping_weight": weights.ball,
         "approach_shaping_weight": weights.approach,
+        "possession_shaping_weight": weights.possession,
     }
     params_now = dataclasses.replace(setup.env_params, **shaping)
     return rollout(
@@ -313,6 +318,9 @@ def iteration_metrics(
         "env/goal_reward": jnp.mean(data.goal_reward),
         "env/ball_shaping": jnp.mean(data.ball_shaping),
         "env/approach_shaping": jnp.mean(data.approach_shaping),
+        "env/possession_shaping": jnp.mean(data.possession_shaping),
+        # The learner's share of steps with the ball minus the opponent's (reward.ball_holder).
+        "env/possession": jnp.mean(data.possession),
         "env/shaping_active": shaping_before.active.astype(jnp.float32),
         "env/shaping_switched_off": (shaping_before.active & ~shaping_after.active).astype(
             jnp.float32

@@ -83,6 +83,8 @@ class Rollout:
     goal_reward: jax.Array  # f32[G] sum over steps of the learner's goal term g (per player)
     ball_shaping: jax.Array  # f32[G] sum over steps of w_b * b (per player)
     approach_shaping: jax.Array  # f32[G] sum over steps of w_a * a, mean over the n players
+    possession_shaping: jax.Array  # f32[G] sum over steps of w_p * p (per player)
+    possession: jax.Array  # f32[G] the learner's share of steps with the ball minus the opponent's
 
 
 @dataclasses.dataclass(frozen=True)
@@ -110,6 +112,8 @@ class _StepRecord(struct.PyTreeNode):
     goal_reward: jax.Array  # f32[G, n]
     ball_shaping: jax.Array  # f32[G, n]
     approach_shaping: jax.Array  # f32[G, n]
+    possession_shaping: jax.Array  # f32[G, n]
+    holder: jax.Array  # f32[G]
 
 
 def _to_units(leaf: jax.Array, n: int) -> jax.Array:
@@ -203,6 +207,8 @@ def _learner_record(env: Soccer, params: EnvParams, view: StepView) -> _StepReco
         goal_reward=pick_side(view.info.goal_reward, side),
         ball_shaping=pick_side(view.info.ball_shaping, side),
         approach_shaping=pick_side(view.info.approach_shaping, side),
+        possession_shaping=pick_side(view.info.possession_shaping, side),
+        holder=pick_side(view.info.holder, side),
     )
 
 
@@ -240,4 +246,6 @@ def _collected(
         goal_reward=jnp.sum(history.goal_reward[:, :, 0], axis=0),
         ball_shaping=jnp.sum(history.ball_shaping[:, :, 0], axis=0),
         approach_shaping=jnp.mean(jnp.sum(history.approach_shaping, axis=0), axis=-1),
+        possession_shaping=jnp.sum(history.possession_shaping[:, :, 0], axis=0),
+        possession=jnp.mean(history.holder, axis=0),
     )

@@ -107,10 +107,15 @@ class ShapingWeights(NamedTuple):
     """-> ``EnvParams.ball_shaping_weight`` (w_b, 0.1 in eq. 4.1), 0 once shaping is off."""
     approach: jax.Array
     """-> ``EnvParams.approach_shaping_weight`` (w_a, 0.05 in eq. 4.1), 0 once shaping is off."""
+    possession: jax.Array
+    """-> ``EnvParams.possession_shaping_weight`` (w_p, not in the thesis), 0 once off."""
 
 
 def shaping_weights(
-    state: ShapingState, base_ball_weight: ArrayLike, base_approach_weight: ArrayLike
+    state: ShapingState,
+    base_ball_weight: ArrayLike,
+    base_approach_weight: ArrayLike,
+    base_possession_weight: ArrayLike = 0.0,
 ) -> ShapingWeights:
     """The base weights while shaping is active, 0 after.
 
@@ -120,4 +125,7 @@ def shaping_weights(
     return ShapingWeights(
         ball=jnp.where(state.active, jnp.asarray(base_ball_weight, jnp.float32), 0.0),
         approach=jnp.where(state.active, jnp.asarray(base_approach_weight, jnp.float32), 0.0),
+        possession=jnp.where(
+            state.active, jnp.asarray(base_possession_weight, jnp.float32), 0.0
+        ),
     )

@@ -1,0 +1,79 @@
+"""The possession term of the reward (elevens.env.reward.ball_holder)."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import elevens
+from elevens.env.reward import ball_holder, reward_terms
+
+
+def _positions(team0, team1):
+    return jnp.asarray(np.array(team0 + team1, np.float32))
+
+
+@pytest.mark.parametrize(
+    "team0,team1,ball,expected",
+    [
+        # Team 0's nearest is 1 m away, team 1's 5 m: team 0 has it.
+        ([(1.0, 0.0), (-20.0, 0.0)], [(5.0, 0.0), (30.0, 0.0)], (0.0, 0.0), (1.0, -1.0)),
+        # The same mirrored between the teams.
+        ([(5.0, 0.0), (30.0, 0.0)], [(0.0, 1.0), (-20.0, 0.0)], (0.0, 0.0), (-1.0, 1.0)),
+        # A free ball: both nearest players beyond the radius (2 m).
+        ([(3.0, 0.0), (-20.0, 0.0)], [(0.0, 4.0), (30.0, 0.0)], (0.0, 0.0), (0.0, 0.0)),
+        # Both within the radius: the nearer team has it, however close the other is.
+        ([(0.5, 0.0), (-20.0, 0.0)], [(0.0, 0.6), (30.0, 0.0)], (0.0, 0.0), (1.0, -1.0)),
+        # Exactly as near: neither has it.
+        ([(1.0, 0.0), (-20.0, 0.0)], [(-1.0, 0.0), (30.0, 0.0)], (0.0, 0.0), (0.0, 0.0)),
+    ],
+)
+def test_ball_holder_is_the_nearer_team_within_the_radius(team0, team1, ball, expected):
+    _, params = elevens.make("2v2")
+    holder = ball_holder(jnp.asarray(ball), _positions(team0, team1), params)
+    np.testing.assert_array_equal(np.asarray(holder), np.asarray(expected, np.float32))
+
+
+def test_possession_term_is_zero_sum_weighted_and_off_by_default():
+    _, params = elevens.make("2v2")
+    positions = _positions([(1.0, 0.0), (-20.0, 0.0)], [(5.0, 0.0), (30.0, 0.0)])
+    zeros2, zeros4 = jnp.zeros(2), jnp.zeros((4, 2))
+    ball = jnp.asarray([0.0, 0.0])
+    args = (jnp.zeros(2, jnp.int32), ball, zeros2, zeros4, ball, positions)
+    off = reward_terms(*args, params)
+    np.testing.assert_array_equal(np.asarray(off.possession), 0.0)
+    np.testing.assert_array_equal(np.asarray(off.holder), [1.0, -1.0])
+    on = reward_terms(*args, params.replace(possession_shaping_weight=0.01))
+    np.testing.assert_allclose(np.asarray(on.possession), [[0.01, 0.01], [-0.01, -0.01]])
+    np.testing.assert_allclose(np.asarray(on.total - off.total), np.asarray(on.possession))
+
+
+def test_possession_in_played_games_matches_ball_holder_under_jit_and_vmap():
+    env, params = elevens.make("3v3", episode_length=50)
+    params = params.replace(possession_shaping_weight=0.02, possession_radius=5.0)
+    games = 16
+    keys = jax.random.split(jax.random.key(3), games)
+    states, _ = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
+    step = jax.jit(jax.vmap(env.step, in_axes=(0, 0, 0, None)))
+    held = []
+    for t in range(50):
+        actions = jax.random.uniform(jax.random.key(t), (games, 2, 3, 2), minval=-1, maxval=1)
+        step_keys = jax.random.split(jax.random.key(100 + t), games)
+        if t < 3:  # eager, one game, agrees with the compiled batch
+            eager = env.step(step_keys[0], jax.tree.map(lambda x: x[0], states), actions[0], params)
+        states, _, rewards, _, info = step(step_keys, states, actions, params)
+        if t < 3:
+            np.testing.assert_allclose(np.asarray(eager[2]), np.asarray(rewards[0]), atol=1e-6)
+        holder = np.asarray(info.holder)  # [G, 2]
+        np.testing.assert_array_equal(holder[:, 0], -holder[:, 1])
+        expected = np.repeat(0.02 * holder[:, :, None], 3, axis=2)
+        np.testing.assert_allclose(np.asarray(info.possession_shaping), expected, rtol=1e-6)
+        positions, ball = np.asarray(states.positions), np.asarray(states.ball_position)
+        for g in range(games):
+            if not np.asarray(info.goals)[g].any():  # a goal respawns: the term saw the old state
+                direct = ball_holder(jnp.asarray(ball[g]), jnp.asarray(positions[g]), params)
+                np.testing.assert_array_equal(np.asarray(direct), holder[g])
+        held.extend(holder[:, 0].tolist())
+    assert {-1.0, 0.0, 1.0} <= set(held), "not every case came up: the test proves nothing"

@@ -5,9 +5,14 @@ import os
 import shutil
 import tempfile
 
-import jax
-import pytest
-from hypothesis import settings
+# The suite runs in two worker processes (pyproject: pytest -n 2). Where a GPU is visible, each
+# would otherwise take 75% of its memory when JAX starts.
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    os.environ.setdefault("XLA_PYTHON_CLIENT_PREALLOCATE", "false")
+
+import jax  # noqa: E402
+import pytest  # noqa: E402
+from hypothesis import settings  # noqa: E402
 
 # CI and the README's test command: the same examples every run, so a fuzz find cannot make one
 # CI run fail and the next pass. HYPOTHESIS_PROFILE=explore draws new ones (what a person runs
@@ -23,14 +28,21 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
 # second build with the same shapes loads the executable instead of compiling it again. The
 # directory is new for each session and removed at its end: no run reuses another's compiles.
 # Only compiles over 0.1 s are stored (the op-by-op kernels of eager code are not worth a file).
-_COMPILE_CACHE = tempfile.mkdtemp(prefix="elevens-test-compiles-")
+# With pytest -n, the controlling process makes the directory and its workers share it (they
+# inherit the variable); only the process that made it removes it.
+_CACHE_VARIABLE = "ELEVENS_TEST_COMPILE_CACHE"
+_OWNS_CACHE = _CACHE_VARIABLE not in os.environ
+if _OWNS_CACHE:
+    os.environ[_CACHE_VARIABLE] = tempfile.mkdtemp(prefix="elevens-test-compiles-")
+_COMPILE_CACHE = os.environ[_CACHE_VARIABLE]
 jax.config.update("jax_compilation_cache_dir", _COMPILE_CACHE)
 jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.1)
 jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
 
 
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
-    shutil.rmtree(_COMPILE_CACHE, ignore_errors=True)
+    if _OWNS_CACHE:
+        shutil.rmtree(_COMPILE_CACHE, ignore_errors=True)
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:

@@ -214,6 +214,36 @@ def test_policy_loss_mask_ignores_masked_entries() -> None:
     np.testing.assert_allclose(out.clip_fraction, 0.5)
 
 
+def test_policy_mask_drops_scripted_entries_from_the_policy_terms_only() -> None:
+    values, returns = jnp.array([0.5, 1.0, -1.0, 2.0]), jnp.array([1.0, 0.0, 0.0, 1.0])
+    entropy = jnp.array([1.0, 5.0, 7.0, 3.0])
+    played = np.array([True, False, False, True])
+    hp = PPOHyperparams(normalize_advantages=True)
+    both = ppo_loss(LOG_NEW, LOG_OLD, values, returns, entropy, advantages=ADVANTAGES,
+                    policy_mask=played, hyperparams=hp)
+    subset = ppo_loss(LOG_NEW[played], LOG_OLD[played], values[played], returns[played],
+                      entropy[played], advantages=ADVANTAGES[played], hyperparams=hp)
+    full = ppo_loss(LOG_NEW, LOG_OLD, values, returns, entropy, advantages=ADVANTAGES,
+                    hyperparams=hp)
+    # The policy, entropy and advantage terms are those of the played entries alone ...
+    for name in ("policy", "entropy", "approx_kl", "clip_fraction", "advantage_mean"):
+        np.testing.assert_allclose(getattr(both, name), getattr(subset, name), rtol=1e-6)
+    # ... and the critic still learns every state's value.
+    np.testing.assert_allclose(both.value, full.value, rtol=1e-6)
+    assert not np.isclose(float(both.value), float(subset.value))
+    # A scripted entry's log-probability has no gradient.
+    grads = jax.grad(lambda lp: ppo_loss(lp, LOG_OLD, values, returns, entropy,
+                                         advantages=ADVANTAGES, policy_mask=played).total)(LOG_NEW)
+    np.testing.assert_array_equal(np.asarray(grads)[~played], 0.0)
+    assert np.all(np.asarray(grads)[played] != 0.0)
+    # With a mask too, an entry counts in the policy terms only if both allow it.
+    padded = np.array([True, True, False, False])
+    one = ppo_loss(LOG_NEW, LOG_OLD, values, returns, entropy, advantages=ADVANTAGES,
+                   mask=padded, policy_mask=played)
+    np.testing.assert_allclose(one.entropy, 1.0)
+    np.testing.assert_allclose(one.value, float(jnp.mean((values - returns)[:2] ** 2)), rtol=1e-6)
+
+
 def test_value_loss_by_hand() -> None:
     # errors 1 and -2 -> squared 1 and 4 -> mean 2.5
     np.testing.assert_allclose(value_loss(jnp.array([1.0, 2.0]), jnp.array([2.0, 0.0])), 2.5)

@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -91,3 +93,50 @@ def test_stamina_is_the_servers_only() -> None:
     validate(tiny_config(**{**RCSS, "env.stamina": True}))
     with pytest.raises(ValueError, match="env.stamina=True is invalid with env.physics='thesis'"):
         validate(tiny_config(**{"env.stamina": True}))
+
+
+def test_the_goalie_routine_needs_a_player_for_the_policy() -> None:
+    validate(tiny_config(**{**RCSS, "env.goalie": True, "env.players_per_team": 2}))
+    with pytest.raises(ValueError, match="env.goalie=True is invalid with 1 player a side"):
+        validate(tiny_config(**{**RCSS, "env.goalie": True}))
+    with pytest.raises(ValueError, match="env.goalie=True is invalid with env.physics='thesis'"):
+        validate(tiny_config(**{"env.goalie": True, "env.players_per_team": 2}))
+
+
+def test_with_the_goalie_routine_the_goalies_samples_leave_the_policy_loss() -> None:
+    """The routine plays player 0 whatever the policy sampled for it: those samples must not
+    move the policy (they used to, one player in n), while the critic still learns there."""
+    from elevens.train import learner, ppo
+
+    def loss_of(goalie: bool) -> tuple[ppo.PPOLoss, ppo.PPOLoss, Any]:
+        config = tiny_config(**{
+            **RCSS, "env.goalie": goalie, "env.players_per_team": 2, "games_per_iteration": 4,
+            "ppo.minibatch_size": 8, "env.episode_length": 8,
+        })
+        setup = learner.make_setup(config.learner)
+        state = learner.init_state(setup, jax.random.key(0))
+        data = learner.collect(setup, state, jax.random.key(1))
+        values = jnp.repeat(setup.critic.apply(state.params.critic, data.game_global_state),
+                            2, axis=0)
+        returns, gae_advantages = learner.advantages(setup.config.ppo, data, values)
+        batch = learner.update_batch(setup, data, values, returns, gae_advantages, None)
+        # The goalie's recorded samples replaced by others: only a masked loss ignores that.
+        other = batch.replace(
+            pre_tanh=batch.pre_tanh.at[:, 0].add(0.7),
+            log_prob=batch.log_prob.at[:, 0].add(-1.3),
+        )
+        hp = setup.config.ppo
+        losses = [ppo.sequence_loss(setup.policy, setup.critic, hp, state.params, b)[1]
+                  for b in (batch, other)]
+        return losses[0], losses[1], batch.policy_mask
+
+    masked, masked_other, mask = loss_of(goalie=True)
+    assert mask is not None and mask.shape == (4, 2, 8)
+    assert not np.asarray(mask)[:, 0].any() and np.asarray(mask)[:, 1].all()
+    for name in ("policy", "entropy", "value", "approx_kl"):
+        np.testing.assert_allclose(
+            float(getattr(masked, name)), float(getattr(masked_other, name)), rtol=1e-6
+        )
+    plain, plain_other, no_mask = loss_of(goalie=False)
+    assert no_mask is None
+    assert not np.isclose(float(plain.policy), float(plain_other.policy))

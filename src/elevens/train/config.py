@@ -826,6 +826,11 @@ def _validate_env(env: EnvConfig) -> None:
         "keeper has no hands; the goalie's routine is rcssserver's (env.physics rcss)",
     )
     _require(
+        not env.goalie or env.game.players_per_team > 1,
+        "env.goalie=True is invalid with 1 player a side: the routine plays each team's "
+        "goalie (player 0), so the policy would play nobody; use 2 or more players",
+    )
+    _require(
         not env.stamina or env.physics == "rcss",
         f"env.stamina=True is invalid with env.physics={env.physics!r}: the simulator's own "
         "players never tire; stamina is rcssserver's (env.physics rcss)",
@@ -857,6 +862,11 @@ def _validate_mix(learner: LearnerConfig) -> None:
             and match.group(1) == match.group(2)
             and 1 <= int(match.group(1)) <= MAX_PLAYERS_PER_TEAM,
             f"env.mix: {_scenario_error(scenario)}",
+        )
+        _require(
+            not env.goalie or scenario != "1v1",
+            "env.mix=('1v1', ...) is invalid with env.goalie=True: the routine plays each "
+            "team's goalie (player 0), so the policy would play nobody in 1 v 1",
         )
     if not env.mix and not env.mix_shares:
         return

@@ -271,7 +271,18 @@ def update_batch(
         advantages=maybe(gae_advantages),
         old_values=by_game(values) if setup.config.ppo.clip_value else None,
         entropy_noise=maybe(entropy_noise),
+        policy_mask=scripted_goalie_mask(setup, t.reset.shape[-1]),
     ))
+
+
+def scripted_goalie_mask(setup: Setup, steps: int) -> jax.Array | None:
+    """bool[G, n, T]: with ``env.goalie`` the routine plays each goalie (player 0) and the
+    policy's sampled action for it is never played, so its entries leave PPO's policy and
+    entropy terms (``ppo.ppo_loss`` policy_mask); None otherwise."""
+    if not setup.config.env.goalie:
+        return None
+    played = jnp.arange(setup.players) != 0
+    return jnp.broadcast_to(played[None, :, None], (setup.games, setup.players, steps))
 
 
 def next_shaping(setup: Setup, shaping: ShapingState, data: Rollout) -> ShapingState:

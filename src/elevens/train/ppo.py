@@ -388,6 +388,7 @@ def ppo_loss(
     advantages: ArrayLike | None = None,
     old_values: ArrayLike | None = None,
     mask: ArrayLike | None = None,
+    policy_mask: ArrayLike | None = None,
     hyperparams: PPOHyperparams | None = None,
 ) -> PPOLoss:
     """The PPO loss of eq. 3.59 / Algorithm 4 line 21 (negated into a minimisation).
@@ -403,6 +404,9 @@ def ppo_loss(
             advantages here when using GAE.
         old_values: ``f32[...]`` rollout-time values, needed only for value clipping.
         mask: optional ``bool[...]``; only True entries count (in every term and statistic).
+        policy_mask: optional ``bool[...]``, True where the policy's own action was played;
+            where a scripted routine played instead (``env.goalie``'s goalie), the entry
+            counts in the value loss only, not in the policy, entropy or advantage terms.
         hyperparams: weights, clip and switches; ``PPOHyperparams()`` when None.
 
     Advantage normalisation (``hyperparams.normalize_advantages``) happens here, so it is per
@@ -414,10 +418,14 @@ def ppo_loss(
     if advantages is None:
         advantages = returns - jax.lax.stop_gradient(values)
     advantages = jax.lax.stop_gradient(jnp.asarray(advantages, jnp.float32))
-    advantage_mean = _masked_mean(advantages, mask)
+    acted = mask
+    if policy_mask is not None:
+        acted = jnp.asarray(policy_mask, bool)
+        acted = acted if mask is None else acted & jnp.asarray(mask, bool)
+    advantage_mean = _masked_mean(advantages, acted)
     if hp.normalize_advantages:
-        advantages = normalize_advantages(advantages, mask)
-    policy = policy_loss(log_prob_new, log_prob_old, advantages, hp.clip_epsilon, mask)
+        advantages = normalize_advantages(advantages, acted)
+    policy = policy_loss(log_prob_new, log_prob_old, advantages, hp.clip_epsilon, acted)
     value = value_loss(
         values,
         returns,
@@ -425,7 +433,7 @@ def ppo_loss(
         clip_epsilon=hp.value_clip_epsilon if hp.clip_value else None,
         mask=mask,
     )
-    entropy_mean = entropy_bonus(entropy, mask)
+    entropy_mean = entropy_bonus(entropy, acted)
     total = (
         hp.policy_weight * policy.loss
         + hp.value_weight * value
@@ -457,6 +465,7 @@ class UpdateBatch(struct.PyTreeNode):
     advantages: jax.Array | None  # f32[G, n, T] GAE advantages; None: A = G - V in the loss
     old_values: jax.Array | None  # f32[G, n, T] rollout-time values, only for value clipping
     entropy_noise: jax.Array | None = None  # f32[G, n, T, 2] only for the squashed entropy
+    policy_mask: jax.Array | None = None  # bool[G, n, T] False where a routine played (ppo_loss)
 
 
 def sequence_loss(
@@ -502,6 +511,7 @@ def sequence_loss(
         else distribution.entropy_at(sequences(batch.entropy_noise)),
         advantages=None if batch.advantages is None else sequences(batch.advantages),
         old_values=None if batch.old_values is None else sequences(batch.old_values),
+        policy_mask=None if batch.policy_mask is None else sequences(batch.policy_mask),
         hyperparams=hp,
     )
     return loss.total, loss

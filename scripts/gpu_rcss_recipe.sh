@@ -6,6 +6,7 @@
 # against itself, with the server's see timing (SEE=3) or fresh observations (SEE=1), and the
 # server's stamina and the elevens goalie routine (RULES=1; RULES=0 leaves both out), and a
 # reward for having the ball (POSSESSION=w_p, EnvParams.possession_shaping_weight; 0: off).
+# KIND=league plays past snapshots instead of the Polyak-averaged copy (opponent.kind).
 #   R=/tmp/gpuruns INIT=docs/results/robocup_teams/rcss-gpu MIN=8 bash scripts/gpu_rcss_recipe.sh
 # With OUT set (the device tool's output folder), the run directory is packed into
 # $OUT/rcss.tgz. Then, here: elevens robocup match --team0 $R/rcss --team1-cmd "$H ..."
@@ -28,7 +29,8 @@ $PY -m elevens train 11v11 --env.physics rcss --network.actions 12 --network.fea
   --run.init-from "${INIT:-docs/results/robocup_teams/rcss-gpu}" $opponents \
   --games-per-iteration "${G:-128}" --ppo.minibatch-size "${MB:-352}" \
   --ppo.learning-rate 3e-4 --ppo.advantage-estimator gae --ppo.normalize-advantages \
-  --ppo.entropy-weight 1e-3 --opponent.polyak-tau 0.05 --env.no-shaping-schedule \
+  --ppo.entropy-weight 1e-3 --opponent.kind "${KIND:-polyak}" --opponent.polyak-tau 0.05 \
+  --env.no-shaping-schedule \
   --iterations-per-chunk "${CHUNK:-5}" --run.checkpoint-every 20 --run.keep-checkpoints 6 \
   --run.iterations 1000000 --run.eval-teams --run.no-write-gif \
   --run.max-minutes "${MIN:-8}" --run.run-dir "$R/rcss"

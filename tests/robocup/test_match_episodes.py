@@ -76,9 +76,12 @@ def test_a_goal_is_followed_by_the_referees_kick_off_not_a_respawn() -> None:
     assert len(fake.resets) == 1 and info["play_mode"] == "goal_l" and not done
     # After a goal every player of both elevens sides moves to its kick-off slot, whatever its
     # policy says; the right side (conceded) kicks off, so its taker goes to the centre.
-    env.step(np.ones((2, 2, 12), np.float32))
+    *_, moved = env.step(np.ones((2, 2, 12), np.float32))
     sent = fake.sent[-1]
     assert all(isinstance(c, Move) for c in sent)
+    # Every player's command was the routine's: none of the policies' samples was played, so
+    # elevens robocup train keeps them out of PPO's policy terms (Rollout.scripted).
+    assert moved["scripted"].shape == (2, 2) and moved["scripted"].all()
     right_taker = sent[2 + kick_off_taker(2)]
     assert isinstance(right_taker, Move) and abs(right_taker.x) < 1.0
     fake.events.append(dict(play_mode="kick_off_r"))
@@ -90,10 +93,11 @@ def test_drills_leave_the_policys_commands_alone() -> None:
     env, clients, _ = make_env(2, action="thesis12")
     env.reset(seed=0)
     clients[0].events.append(dict(play_mode="goal_l", goals=(1, 0)))
-    env.step(zeros(2))
+    *_, first = env.step(zeros(2))
     clients[0].play_mode = "before_kick_off"
-    env.step(np.ones((2, 2, 12), np.float32))
+    *_, second = env.step(np.ones((2, 2, 12), np.float32))
     assert not any(isinstance(c, Move) for c in clients[0].sent[-1])
+    assert not first["scripted"].any() and not second["scripted"].any()
 
 
 # ------------------------------------------------------------------------ integration

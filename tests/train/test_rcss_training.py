@@ -140,3 +140,25 @@ def test_with_the_goalie_routine_the_goalies_samples_leave_the_policy_loss() -> 
     plain, plain_other, no_mask = loss_of(goalie=False)
     assert no_mask is None
     assert not np.isclose(float(plain.policy), float(plain_other.policy))
+
+
+def test_players_a_server_routine_played_leave_the_policy_loss_too() -> None:
+    """elevens robocup train records who its match routines played (Rollout.scripted); those
+    entries join the goalie routine's in the policy mask."""
+    from elevens.train import learner
+
+    config = tiny_config(**{
+        **RCSS, "env.goalie": True, "env.players_per_team": 2, "games_per_iteration": 4,
+        "ppo.minibatch_size": 8, "env.episode_length": 8,
+    })
+    setup = learner.make_setup(config.learner)
+    state = learner.init_state(setup, jax.random.key(0))
+    data = learner.collect(setup, state, jax.random.key(1))
+    goalie_only = np.asarray(learner.policy_played(setup, data))
+    scripted = np.zeros((8, 8), bool)  # [U = 4 games x 2 players, T]
+    scripted[1, 2:5] = True  # game 0, player 1, steps 2-4: a set piece
+    scripted[0, :] = True  # a goalie: already out
+    played = np.asarray(learner.policy_played(setup, data.replace(scripted=jnp.asarray(scripted))))
+    expected = goalie_only.copy()
+    expected[0, 1, 2:5] = False
+    np.testing.assert_array_equal(played, expected)

@@ -383,8 +383,9 @@ class RoboCupEnv:
     ``malformed`` (messages dropped this cycle), ``play_mode``, ``score`` i32[2] (this episode,
     team 0 first), ``goals`` i32[2] (this step), ``goal_reward``/``ball_shaping``/
     ``approach_shaping``/``possession_shaping`` f32[2, n] (the reward terms), ``holder`` f32[2]
-    (who has the ball, elevens.env.reward.ball_holder), ``ball_returned`` (keep_ball_in_play
-    moved the ball back), ``server_time``, ``truncated`` (= done).
+    (who has the ball, elevens.env.reward.ball_holder), ``scripted`` bool[2, n] (a match
+    routine played for the player this cycle, not its policy), ``ball_returned``
+    (keep_ball_in_play moved the ball back), ``server_time``, ``truncated`` (= done).
     """
 
     def __init__(
@@ -410,6 +411,7 @@ class RoboCupEnv:
         )
         self._memory = PerceptMemory(observed, self.config.team_names, PLAYER_DECAY)
         self._routines: list[MatchRoutines] = []
+        self._scripted = np.zeros(2 * self.config.players_per_team, bool)
         self._scaling = ActionScaling()
         self._kickable = kickable_distance()
         self._rng = np.random.default_rng()
@@ -524,6 +526,7 @@ class RoboCupEnv:
             approach_shaping=approach_r,
             possession_shaping=possession_r,
             holder=np.asarray(terms.holder, np.float32),
+            scripted=self._scripted.reshape(2, -1).copy(),
             ball_returned=ball_returned,
         )
         assert self._state is not None
@@ -710,14 +713,17 @@ class RoboCupEnv:
 
     def _apply_routines(self, commands: list[Command]) -> list[Command | None]:
         """In match episodes, each elevens side's commands with its match routines applied
-        (for the cycle last observed); in drills, ``commands`` unchanged."""
+        (for the cycle last observed); in drills, ``commands`` unchanged. ``self._scripted``
+        (bool[2n]) marks the players a routine played for."""
         out: list[Command | None] = list(commands)
+        self._scripted = np.zeros(len(out), bool)
         if not self._match or self._last_cycle is None:
             return out
         n = self.players_per_team
         for routines in self._routines:
             own = slice(routines.side * n, (routines.side + 1) * n)
             out[own], _ = routines.apply(out[own], self._memory, self._last_cycle)
+            self._scripted[own] = routines.scripted
         return out
 
     def _keep_ball_in_play(self, cycle: Cycle, before: State) -> bool:
@@ -887,6 +893,7 @@ class RoboCupEnv:
             approach_shaping=zeros,
             possession_shaping=zeros,
             holder=np.zeros(2, np.float32),
+            scripted=np.zeros((2, n), bool),
             ball_returned=False,
         )
         assert self._state is not None

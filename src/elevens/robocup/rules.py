@@ -493,6 +493,10 @@ class MatchRoutines:
     set_piece_cycles: int = 0
     touch: SecondTouch = dataclasses.field(default_factory=SecondTouch)
     taker: int | None = None  # who is taking our set piece
+    # Per player, last cycle: a routine's command went out instead of the policy's (a move,
+    # a set piece, the goalie's guard or catch, a blocked second touch). Stamina pacing only
+    # lowers the policy's own dash, so it does not count.
+    scripted: list[bool] = dataclasses.field(default_factory=list)
 
     def observe_mode(self, mode: str) -> int:
         """Note this cycle's play mode before the policy acts; the observations' clock."""
@@ -530,6 +534,7 @@ class MatchRoutines:
         out, _ = guard_goal(out, view, mode, self.side, goalie_busy=busy)
         if what == "policy":
             out = no_second_touch(out, view, self.touch, self.cycles, kickable=self.kickable)
+        self.scripted = [mine is not sent for mine, sent in zip(policy, out, strict=True)]
         stamina, capacity = staminas(cycle, self.side, self.n)
         out = pace_dashes(out, stamina, capacity, int(cycle.server_time))
         if what == "catch":

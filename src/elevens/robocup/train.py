@@ -337,7 +337,8 @@ def play_iteration(
     logs = [_GameLog() for _ in range(num_games)]
     record: dict[str, list[Any]] = {
         name: [] for name in ("obs", "global_state", "pre_tanh", "log_prob", "reward", "done",
-                              "reset", "goal", "ball", "approach", "possession", "holder")
+                              "reset", "goal", "ball", "approach", "possession", "holder",
+                              "scripted")
     }
     step_keys = jax.random.split(key, (T, 2))
     for t in range(T):
@@ -364,6 +365,7 @@ def play_iteration(
         rewards = np.zeros((num_games, n), np.float32)
         terms = np.zeros((4, num_games, n), np.float32)
         holder = np.zeros(num_games, np.float32)
+        scripted = np.zeros((num_games, n), bool)
         done = np.zeros(num_games, bool)
         for g, (state, observation, _, _, info) in enumerate(results):
             side = sides[g]
@@ -373,6 +375,7 @@ def play_iteration(
             possession = np.asarray(info["possession_shaping"])[side]
             terms[:, g] = goal, ball, approach, possession
             holder[g] = np.asarray(info["holder"])[side]
+            scripted[g] = np.asarray(info.get("scripted", np.zeros((2, n), bool)))[side]
             rewards[g] = goal + (ball + approach + possession if shaping_active else 0.0)
             # A restart cuts the episode short; a fresh one starts next step.
             done[g] = logs[g].add(info, side)
@@ -384,7 +387,7 @@ def play_iteration(
             ("pre_tanh", np.asarray(pre_tanh)), ("log_prob", np.asarray(log_prob)),
             ("reward", rewards), ("done", done.copy()), ("reset", reset.copy()),
             ("goal", terms[0]), ("ball", terms[1]), ("approach", terms[2]),
-            ("possession", terms[3]), ("holder", holder),
+            ("possession", terms[3]), ("holder", holder), ("scripted", scripted),
         ):
             record[name].append(value)
         reset = done.copy()  # the policy zeroes those rows' memories itself (RecurrentCore)
@@ -443,6 +446,7 @@ def _packed_rollout(
         approach_shaping=jnp.asarray(approach_sum.mean(axis=-1)),
         possession_shaping=jnp.asarray(possession_sum[:, 0]),
         possession=jnp.asarray(np.mean(np.stack(record["holder"]), axis=0)),
+        scripted=per_player(record["scripted"]),
     )
     return rollout
 

@@ -271,18 +271,25 @@ def update_batch(
         advantages=maybe(gae_advantages),
         old_values=by_game(values) if setup.config.ppo.clip_value else None,
         entropy_noise=maybe(entropy_noise),
-        policy_mask=scripted_goalie_mask(setup, t.reset.shape[-1]),
+        policy_mask=policy_played(setup, data),
     ))
 
 
-def scripted_goalie_mask(setup: Setup, steps: int) -> jax.Array | None:
-    """bool[G, n, T]: with ``env.goalie`` the routine plays each goalie (player 0) and the
-    policy's sampled action for it is never played, so its entries leave PPO's policy and
-    entropy terms (``ppo.ppo_loss`` policy_mask); None otherwise."""
-    if not setup.config.env.goalie:
-        return None
-    played = jnp.arange(setup.players) != 0
-    return jnp.broadcast_to(played[None, :, None], (setup.games, setup.players, steps))
+def policy_played(setup: Setup, data: Rollout) -> jax.Array | None:
+    """bool[G, n, T], False where a routine played instead of the policy, whose sampled
+    action there was never played, so those entries leave PPO's policy and entropy terms
+    (``ppo.ppo_loss`` policy_mask): with ``env.goalie`` each goalie (player 0), always; in
+    the server's match episodes whoever its routines played (``Rollout.scripted``). None when
+    the policy played everything."""
+    games, n, steps = setup.games, setup.players, data.transitions.reset.shape[-1]
+    played = None
+    if setup.config.env.goalie:
+        outfield = jnp.arange(n) != 0
+        played = jnp.broadcast_to(outfield[None, :, None], (games, n, steps))
+    if data.scripted is not None:
+        by_routine = ~data.scripted.reshape(games, n, steps)
+        played = by_routine if played is None else played & by_routine
+    return played
 
 
 def next_shaping(setup: Setup, shaping: ShapingState, data: Rollout) -> ShapingState:

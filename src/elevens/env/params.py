@@ -137,9 +137,9 @@ class EnvParams:
     """w_a: weight of the player's velocity towards the ball (0 switches it off)."""
     possession_shaping_weight: float = 0.0
     """w_p: weight of having the ball, each step: +w_p to every player of the team that has it
-    (``reward.ball_holder``), -w_p to the other team's. Not in the thesis (0: off); it rewards
-    keeping the ball under pressure, the skill that separates helios-base from elevens teams in
-    rcssserver (docs/results/robocup.md). The shaping schedule switches it off with the rest."""
+    (``reward.ball_holder``), -w_p to the other team's. Not in the thesis (0: off). Having is
+    nearness: a team that crowds the ball wins it without controlling it (docs/results/
+    robocup.md, session 20). The shaping schedule switches it off with the rest."""
     possession_radius: float = 2.0
     """A team has the ball when its nearest player is this near it and nearer than every
     opponent (metres)."""

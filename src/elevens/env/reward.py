@@ -34,7 +34,8 @@ def ball_holder(
 
     A team has the ball when its player nearest to it is within ``possession_radius`` and
     nearer than every opponent: a ball under pressure is held only by the nearer team, a free
-    ball by no one. Zero-sum, so the shaping term built on it cannot be won by both teams.
+    ball by no one. Zero-sum, so the shaping term built on it cannot be won by both teams. It
+    needs no history, and so cannot tell control from crowding (who touched it last can).
     """
     n = params.players_per_team
     gaps = jnp.sqrt(jnp.sum((player_positions - ball_position) ** 2, axis=-1)).reshape(2, n)

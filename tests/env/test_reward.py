@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
 import elevens
-from elevens.env.reward import ball_holder, reward_terms
+from elevens.env.reward import ball_holder, next_last_touch, reward_terms
 
 
 def _positions(team0, team1):
@@ -31,13 +33,13 @@ def _positions(team0, team1):
     ],
 )
 def test_ball_holder_is_the_nearer_team_within_the_radius(team0, team1, ball, expected):
-    _, params = elevens.make("2v2")
+    _, params = elevens.make("2v2", possession_by="near")
     holder = ball_holder(jnp.asarray(ball), _positions(team0, team1), params)
     np.testing.assert_array_equal(np.asarray(holder), np.asarray(expected, np.float32))
 
 
 def test_possession_term_is_zero_sum_weighted_and_off_by_default():
-    _, params = elevens.make("2v2")
+    _, params = elevens.make("2v2", possession_by="near")
     positions = _positions([(1.0, 0.0), (-20.0, 0.0)], [(5.0, 0.0), (30.0, 0.0)])
     zeros2, zeros4 = jnp.zeros(2), jnp.zeros((4, 2))
     ball = jnp.asarray([0.0, 0.0])
@@ -51,7 +53,7 @@ def test_possession_term_is_zero_sum_weighted_and_off_by_default():
 
 
 def test_possession_in_played_games_matches_ball_holder_under_jit_and_vmap():
-    env, params = elevens.make("3v3", episode_length=50)
+    env, params = elevens.make("3v3", episode_length=50, possession_by="near")
     params = params.replace(possession_shaping_weight=0.02, possession_radius=5.0)
     games = 16
     keys = jax.random.split(jax.random.key(3), games)
@@ -77,3 +79,54 @@ def test_possession_in_played_games_matches_ball_holder_under_jit_and_vmap():
                 np.testing.assert_array_equal(np.asarray(direct), holder[g])
         held.extend(holder[:, 0].tolist())
     assert {-1.0, 0.0, 1.0} <= set(held), "not every case came up: the test proves nothing"
+
+
+def test_last_touch_follows_touches_and_contests():
+    none = jnp.asarray(-1, jnp.int32)
+    touches = np.zeros(6, bool)
+    assert int(next_last_touch(none, jnp.asarray(touches))) == -1
+    touches[4] = True  # a team-1 player
+    assert int(next_last_touch(none, jnp.asarray(touches))) == 1
+    assert int(next_last_touch(jnp.asarray(0, jnp.int32), jnp.asarray(touches))) == 1
+    touches[0] = True  # and a team-0 player in the same step: contested
+    assert int(next_last_touch(jnp.asarray(1, jnp.int32), jnp.asarray(touches))) == -1
+    assert int(next_last_touch(jnp.asarray(0, jnp.int32), jnp.zeros(6, bool))) == 0  # kept
+
+
+def test_possession_by_touch_is_the_last_touching_team_in_played_games():
+    """By touch: the holder is the team whose player last kicked or pushed the
+    ball; nobody at the start and after a goal; a hand-built State without last_touch gets 0."""
+    env, params = elevens.make(
+        "2v2", episode_length=200, ball_spawn="centre", possession_by="touch"
+    )
+    params = params.replace(
+        field_length=30.0, field_width=20.0, goal_width=14.0, possession_shaping_weight=0.01
+    )
+    games = 8
+    states, _ = jax.vmap(env.reset, in_axes=(0, None))(
+        jax.random.split(jax.random.key(5), games), params
+    )
+    assert (np.asarray(states.last_touch) == -1).all()
+    step = jax.jit(jax.vmap(env.step, in_axes=(0, 0, 0, None)))
+    last = np.full(games, -1)
+    seen = set()
+    for t in range(200):
+        actions = jax.random.uniform(jax.random.key(t), (games, 2, 2, 2), minval=-1, maxval=1)
+        states, _, rewards, _, info = step(
+            jax.random.split(jax.random.key(1000 + t), games), states, actions, params
+        )
+        touches = np.asarray(info.kicks | info.pushes)  # [G, 4]
+        team0, team1 = touches[:, :2].any(-1), touches[:, 2:].any(-1)
+        last = np.where(team0 & team1, -1, np.where(team0, 0, np.where(team1, 1, last)))
+        expected = np.stack([last == 0, last == 1], -1).astype(np.float32)
+        expected = expected - expected[:, ::-1]
+        np.testing.assert_array_equal(np.asarray(info.holder), expected)  # the step's holder
+        scored = np.asarray(info.goals).any(-1)
+        last = np.where(scored, -1, last)
+        np.testing.assert_array_equal(np.asarray(states.last_touch), last)
+        seen.update(expected[:, 0].tolist())
+    assert seen == {-1.0, 0.0, 1.0}, "not every holder came up: the test proves nothing"
+    hand_built = dataclasses.replace(jax.tree.map(lambda x: x[0], states), last_touch=None)
+    after, _, _, _, info = env.step(jax.random.key(0), hand_built, actions[0], params)
+    assert after.last_touch is None
+    np.testing.assert_array_equal(np.asarray(info.holder), [0.0, 0.0])

@@ -70,6 +70,7 @@ def test_make_scenarios_and_errors():
         ({"kick_impulse": float("nan")}, "kick_impulse"),
         ({"possession_radius": 0.0}, "possession_radius"),
         ({"possession_shaping_weight": -0.01}, "possession_shaping_weight"),
+        ({"possession_by": "vibes"}, "possession_by"),
     ],
 )
 def test_impossible_params_name_the_field(overrides, field):

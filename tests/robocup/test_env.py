@@ -294,6 +294,7 @@ def test_robocup_train_passes_the_possession_reward_to_its_servers() -> None:
 
     config = make_robocup_config(**{
         "env.possession_shaping_weight": 0.005, "env.possession_radius": 3.0,
+        "env.possession_by": "near",
     })
     env = _default_env_factory(config)(0)
     try:
@@ -301,6 +302,10 @@ def test_robocup_train_passes_the_possession_reward_to_its_servers() -> None:
         assert env.params.possession_radius == 3.0
     finally:
         env.close()
+    touch = {"env.possession_shaping_weight": 0.005, "env.possession_by": "touch"}
+    with pytest.raises(ValueError, match="env.possession_by='touch' is invalid in elevens robocup"):
+        make_robocup_config(**touch).validate()
+    make_robocup_config(**{**touch, "env.possession_shaping_weight": 0.0}).validate()  # off
 
 
 # ----------------------------------------------------------------------- action rule

@@ -16,6 +16,7 @@ from flax import struct
 MAX_PLAYERS_PER_TEAM = 11
 SPAWN_MODES = ("formation", "random")
 BALL_SPAWN_MODES = ("centre", "random")
+POSSESSION_MODES = ("touch", "near")
 
 # The 11-a-side formation of team 0 (SPEC.md), in slot order: keeper, defenders, midfield, attack.
 FORMATION_11 = (
@@ -75,6 +76,11 @@ class EnvParams:
     """"formation": slot + noise; "random": uniform in own half, random heading (thesis 2 v 2)."""
     ball_spawn: str = struct.field(pytree_node=False, default="random")
     """"centre" or "random" (uniform over the central ball_spawn_fraction of the field)."""
+    possession_by: str = struct.field(pytree_node=False, default="near")
+    """Who has the ball for the possession reward (``reward.ball_holder``): "near", the team
+    whose nearest player is within ``possession_radius`` and nearer than every opponent (the
+    first definition, so older runs keep their meaning); "touch", the team that touched it
+    last (``State.last_touch``), which a crowding team cannot win without the ball."""
 
     # --- field (metres) ---
     field_length: float = 100.0
@@ -137,12 +143,12 @@ class EnvParams:
     """w_a: weight of the player's velocity towards the ball (0 switches it off)."""
     possession_shaping_weight: float = 0.0
     """w_p: weight of having the ball, each step: +w_p to every player of the team that has it
-    (``reward.ball_holder``), -w_p to the other team's. Not in the thesis (0: off). Having is
-    nearness: a team that crowds the ball wins it without controlling it (docs/results/
-    robocup.md, session 20). The shaping schedule switches it off with the rest."""
+    (``possession_by``), -w_p to the other team's. Not in the thesis (0: off). By nearness a
+    team that crowds the ball wins it without controlling it (docs/results/robocup.md,
+    session 20). The shaping schedule switches it off with the rest."""
     possession_radius: float = 2.0
-    """A team has the ball when its nearest player is this near it and nearer than every
-    opponent (metres)."""
+    """With ``possession_by`` "near": a team has the ball when its nearest player is this near
+    it and nearer than every opponent (metres)."""
 
     def __post_init__(self) -> None:
         self.validate()
@@ -157,6 +163,11 @@ class EnvParams:
             )
         if self.spawn not in SPAWN_MODES:
             raise ValueError(f"spawn={self.spawn!r} is invalid: allowed values are {SPAWN_MODES}")
+        if self.possession_by not in POSSESSION_MODES:
+            raise ValueError(
+                f"possession_by={self.possession_by!r} is invalid: allowed values are "
+                f"{POSSESSION_MODES}"
+            )
         if self.ball_spawn not in BALL_SPAWN_MODES:
             raise ValueError(
                 f"ball_spawn={self.ball_spawn!r} is invalid: allowed values are {BALL_SPAWN_MODES}"

@@ -182,4 +182,5 @@ def initial_state(key: jax.Array, params: EnvParams) -> State:
         ball_velocity=jnp.zeros(2),
         score=jnp.zeros(2, jnp.int32),
         step=jnp.zeros((), jnp.int32),
+        last_touch=jnp.asarray(-1, jnp.int32),
     )

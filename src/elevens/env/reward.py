@@ -27,20 +27,38 @@ def _unit(vector: jax.Array) -> jax.Array:
     return vector / jnp.maximum(norm, 1e-6)
 
 
+def next_last_touch(last_touch: jax.Array, touches: jax.Array) -> jax.Array:
+    """i32[]: ``State.last_touch`` after a step with ``touches`` bool[2n] (kicks or pushes,
+    team 0's players first): the one team that touched the ball, -1 when both did (contested,
+    as the match statistics count it), else unchanged. A goal's restart sets -1 itself."""
+    n = touches.shape[0] // 2
+    team0, team1 = jnp.any(touches[:n]), jnp.any(touches[n:])
+    touched = jnp.where(team0 & team1, -1, jnp.where(team0, 0, jnp.where(team1, 1, last_touch)))
+    return touched.astype(jnp.int32)
+
+
 def ball_holder(
-    ball_position: jax.Array, player_positions: jax.Array, params: EnvParams
+    ball_position: jax.Array,
+    player_positions: jax.Array,
+    params: EnvParams,
+    last_touch: jax.Array | None = None,
 ) -> jax.Array:
     """f32[2]: +1 for the team that has the ball, -1 for the other, 0 when neither has it.
 
-    A team has the ball when its player nearest to it is within ``possession_radius`` and
-    nearer than every opponent: a ball under pressure is held only by the nearer team, a free
-    ball by no one. Zero-sum, so the shaping term built on it cannot be won by both teams. It
-    needs no history, and so cannot tell control from crowding (who touched it last can).
+    ``params.possession_by`` "touch": the team that touched it last (``last_touch``, i32[];
+    None: neither). "near": the team whose player nearest to it is within
+    ``possession_radius`` and nearer than every opponent. Nearness needs no history but
+    cannot tell control from crowding; the touch can. Zero-sum either way.
     """
-    n = params.players_per_team
-    gaps = jnp.sqrt(jnp.sum((player_positions - ball_position) ** 2, axis=-1)).reshape(2, n)
-    nearest = jnp.min(gaps, axis=-1)
-    holds = (nearest <= params.possession_radius) & (nearest < nearest[::-1])
+    if params.possession_by == "touch":
+        if last_touch is None:
+            return jnp.zeros(2, jnp.float32)
+        holds = jnp.stack([last_touch == 0, last_touch == 1])
+    else:
+        n = params.players_per_team
+        gaps = jnp.sqrt(jnp.sum((player_positions - ball_position) ** 2, axis=-1)).reshape(2, n)
+        nearest = jnp.min(gaps, axis=-1)
+        holds = (nearest <= params.possession_radius) & (nearest < nearest[::-1])
     return holds.astype(jnp.float32) - holds[::-1].astype(jnp.float32)
 
 
@@ -52,6 +70,7 @@ def reward_terms(
     ball_position_before: jax.Array,
     player_positions: jax.Array,
     params: EnvParams,
+    last_touch: jax.Array | None = None,
 ) -> RewardTerms:
     """Per-player reward terms of one step.
 
@@ -74,7 +93,7 @@ def reward_terms(
     )
     approach = (params.approach_shaping_weight * towards_ball).reshape(2, n)
 
-    holder = ball_holder(ball_position, player_positions, params)
+    holder = ball_holder(ball_position, player_positions, params, last_touch)
     possession = jnp.broadcast_to((params.possession_shaping_weight * holder)[:, None], (2, n))
     return RewardTerms(
         goal=goal, ball=ball, approach=approach, possession=possession, holder=holder

@@ -16,7 +16,7 @@ from jax.experimental import checkify
 from elevens.env import observe as observe_lib
 from elevens.env import physics
 from elevens.env.params import MAX_PLAYERS_PER_TEAM, EnvParams
-from elevens.env.reward import reward_terms
+from elevens.env.reward import next_last_touch, reward_terms
 from elevens.env.state import GlobalState, Observation, State, StepInfo
 
 SCENARIO = re.compile(r"^(\d+)v(\d+)$")
@@ -41,11 +41,16 @@ def finish_step(
 ) -> tuple[State, jax.Array, jax.Array, StepInfo]:
     """The end of a step, whatever moved the bodies and the ball: rewards, the respawn after a
     goal, the new State and StepInfo. ``state`` is the step's start; the rest its outcome."""
+    scored = jnp.sum(ball.goals) > 0
+    # Hand-built States may leave last_touch None: it stays None (a scan's carry keeps its
+    # structure) and the possession reward by touch is 0 for them.
+    last_touch = (
+        None if state.last_touch is None else next_last_touch(state.last_touch, kicks | pushes)
+    )
     terms = reward_terms(
         ball.goals, ball.position, ball.velocity, velocities, state.ball_position, positions,
-        params,
+        params, last_touch,
     )
-    scored = jnp.sum(ball.goals) > 0
     respawn = physics.spawn(key, params)
     step = state.step + 1
     new_state = State(
@@ -58,6 +63,7 @@ def finish_step(
         ball_velocity=jnp.where(scored, 0.0, ball.velocity),
         score=state.score + ball.goals,
         step=step,
+        last_touch=None if last_touch is None else jnp.where(scored, -1, last_touch),
     )
     done = step >= params.episode_length
     info = StepInfo(

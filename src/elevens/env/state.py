@@ -67,6 +67,10 @@ class State:
     stamina: Any = None
     """Each player's stamina (``elevens.env.rcss.Stamina``) in RcssSoccer with ``stamina``;
     None where players never tire."""
+    last_touch: Any = None
+    """i32[]: the team whose player touched the ball last since the kick-off (0 or 1), -1 for
+    nobody (or both at once). Every reset sets it; a State built by hand may leave it None,
+    and then the possession reward by touch is 0."""
 
     @property
     def num_players(self) -> int:

@@ -144,7 +144,8 @@ class RoboCupConfig:
     approach_shaping_weight: float = 0.05
     """EnvParams.approach_shaping_weight (w_a, player velocity towards the ball)."""
     possession_shaping_weight: float = 0.0
-    """EnvParams.possession_shaping_weight (w_p, having the ball; elevens.env.reward)."""
+    """EnvParams.possession_shaping_weight (w_p, having the ball; elevens.env.reward), by
+    nearness (``possession_by`` "near"): the trainer sees no touches."""
     possession_radius: float = 2.0
     """EnvParams.possession_radius (metres)."""
     action: str = "sim"
@@ -238,6 +239,9 @@ def robocup_env_params(config: RoboCupConfig) -> EnvParams:
         ball_shaping_weight=config.ball_shaping_weight * shaping,
         approach_shaping_weight=config.approach_shaping_weight * shaping,
         possession_shaping_weight=config.possession_shaping_weight * shaping,
+        # The trainer sees no touches (the server reports no kicker), so possession is by
+        # nearness here.
+        possession_by="near",
         possession_radius=config.possession_radius,
     )
 

@@ -168,6 +168,13 @@ class RoboCupTrainConfig:
                         "simulator, whose players take the 2-value (move, rot) action; leave "
                         "it out (evaluate a 12-value team with elevens robocup match)"
                     )
+        game = self.learner.env.game
+        if game.possession_shaping_weight > 0 and game.possession_by != "near":
+            raise ValueError(
+                f"env.possession_by={game.possession_by!r} is invalid in elevens robocup train "
+                "with env.possession_shaping_weight > 0: the trainer sees the server's "
+                "positions, not who touched the ball; use --env.possession-by near"
+            )
         if self.learner.env.game.episode_length < 2:
             raise ValueError(
                 f"env.episode_length={self.learner.env.game.episode_length!r} is invalid in "

@@ -136,7 +136,7 @@ NETWORK_ACTIONS = (2, 12)
 _SILENT_DEFAULTS = (
     "learner.network.actions", "learner.env.physics", "learner.env.see_period",
     "learner.env.stamina", "learner.env.goalie", "learner.env.game.possession_shaping_weight",
-    "learner.env.game.possession_radius",
+    "learner.env.game.possession_radius", "learner.env.game.possession_by",
 )
 PHYSICS = ("thesis", "rcss")
 

@@ -5,7 +5,8 @@
 # games against rcss_naive (MIX=0 for self-play only, which also allows MIX2V2) and the rest
 # against itself, with the server's see timing (SEE=3) or fresh observations (SEE=1), and the
 # server's stamina and the elevens goalie routine (RULES=1; RULES=0 leaves both out), and a
-# reward for having the ball (POSSESSION=w_p, EnvParams.possession_shaping_weight; 0: off).
+# reward for having the ball (POSSESSION=w_p, EnvParams.possession_shaping_weight; 0: off),
+# by the last touch (POSSESSION_BY=touch) or by nearness (near, the default).
 # KIND=league plays past snapshots instead of the Polyak-averaged copy (opponent.kind).
 #   R=/tmp/gpuruns INIT=docs/results/robocup_teams/rcss-gpu MIN=8 bash scripts/gpu_rcss_recipe.sh
 # With OUT set (the device tool's output folder), the run directory is packed into
@@ -25,7 +26,7 @@ $PY -m elevens train 11v11 --env.physics rcss --network.actions 12 --network.fea
   --network.num-heads 4 --network.lstm-features 32 --network.lstm-layers 2 \
   --env.field-length 105 --env.field-width 68 --env.goal-width 14.02 --env.ball-friction 0.94 \
   --env.ball-max-speed 3 --env.see-period "${SEE:-3}" $rules \
-  --env.possession-shaping-weight "${POSSESSION:-0}" \
+  --env.possession-shaping-weight "${POSSESSION:-0}" --env.possession-by "${POSSESSION_BY:-near}" \
   --run.init-from "${INIT:-docs/results/robocup_teams/rcss-gpu}" $opponents \
   --games-per-iteration "${G:-128}" --ppo.minibatch-size "${MB:-352}" \
   --ppo.learning-rate 3e-4 --ppo.advantage-estimator gae --ppo.normalize-advantages \

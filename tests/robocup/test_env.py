@@ -663,3 +663,16 @@ def test_server_death_is_survived() -> None:
         assert_observation_shapes(obs, 1)
         *_, info = env.step(np.zeros((2, 1, 2)))
         assert not info["restarted"]
+
+
+def test_robocup_train_refuses_game_fields_the_server_sets() -> None:
+    from elevens.robocup.train import make_robocup_config
+
+    for flag, value in (("env.field_length", 105.0), ("env.ball_friction", 0.94),
+                        ("env.kick_impulse", 2.0)):
+        with pytest.raises(ValueError, match=f"{flag}={value!r} is invalid in elevens robocup"):
+            make_robocup_config(**{flag: value})
+    # The ones it passes on are fine.
+    make_robocup_config(**{"env.episode_length": 50, "env.goal_reward": 2.0,
+                           "env.ball_shaping_weight": 0.0, "env.players_per_team": 3,
+                           "ppo.minibatch_size": 3})

@@ -106,6 +106,15 @@ class ServerConfig:
             )
 
 
+# The EnvParams fields elevens robocup train passes to its servers' RoboCupEnv
+# (_default_env_factory); rcssserver sets every other one (field, bodies, ball, view).
+SERVER_GAME_FIELDS = (
+    "players_per_team", "episode_length", "spawn", "ball_spawn", "goal_reward",
+    "ball_shaping_weight", "approach_shaping_weight", "possession_shaping_weight",
+    "possession_radius", "possession_by",
+)
+
+
 def _robocup_learner() -> LearnerConfig:
     # The simulator's 2v2 learner with table 6.1's learning rate, 200-cycle drills, one game
     # (server) per minibatch and one iteration per step of the host loop.
@@ -169,6 +178,15 @@ class RoboCupTrainConfig:
                         "it out (evaluate a 12-value team with elevens robocup match)"
                     )
         game = self.learner.env.game
+        default = _robocup_learner().env.game
+        for field in dataclasses.fields(game):
+            value = getattr(game, field.name)
+            if field.name not in SERVER_GAME_FIELDS and value != getattr(default, field.name):
+                raise ValueError(
+                    f"env.{field.name}={value!r} is invalid in elevens robocup train: "
+                    "rcssserver sets the field, the bodies and the ball; the game fields it "
+                    f"takes are {', '.join(SERVER_GAME_FIELDS)}"
+                )
         if game.possession_shaping_weight > 0 and game.possession_by != "near":
             raise ValueError(
                 f"env.possession_by={game.possession_by!r} is invalid in elevens robocup train "

@@ -74,7 +74,8 @@ class SimEnv:
             zeros = np.zeros((2, self.players_per_team), np.float32)
             info = {"restarted": True, "goals": np.zeros(2, np.int32), "goal_reward": zeros,
                     "ball_shaping": zeros, "approach_shaping": zeros,
-                    "possession_shaping": zeros, "holder": np.zeros(2, np.float32), "missed": 0}
+                    "possession_shaping": zeros, "holder": np.zeros(2, np.float32),
+                    "scripted": np.zeros((2, self.players_per_team), bool), "missed": 0}
             return state, obs, zeros, True, info
         self.state, obs, rewards, done, step_info = self._step(
             key, self.state, actions, self.params
@@ -87,6 +88,7 @@ class SimEnv:
             "approach_shaping": np.asarray(step_info.approach_shaping),
             "possession_shaping": np.asarray(step_info.possession_shaping),
             "holder": np.asarray(step_info.holder),
+            "scripted": np.zeros((2, self.players_per_team), bool),  # drills: no routines
             "missed": 0,
             "malformed": 0,
         }

@@ -415,7 +415,6 @@ class RoboCupEnv:
         )
         self._memory = PerceptMemory(observed, self.config.team_names, PLAYER_DECAY)
         self._routines: list[MatchRoutines] = []
-        self._scripted = np.zeros(2 * self.config.players_per_team, bool)
         self._scaling = ActionScaling()
         self._kickable = kickable_distance()
         self._rng = np.random.default_rng()
@@ -474,7 +473,7 @@ class RoboCupEnv:
         commands, applied = self._commands(actions)
         if self._client is None or self._state is None:
             raise RuntimeError("RoboCupEnv.step called before reset()")
-        ruled = self._apply_routines(commands)
+        ruled, scripted = self._apply_routines(commands)
         before = self._state
         try:
             cycle = self._client.step(self._own(ruled))
@@ -501,11 +500,10 @@ class RoboCupEnv:
                 after.positions,
                 self.params,
             )
-        goal_r, ball_r, approach_r, possession_r = (
+        goal_r, ball_r, approach_r, possession_r, rewards = (
             np.asarray(t, np.float32)
-            for t in (terms.goal, terms.ball, terms.approach, terms.possession)
+            for t in (terms.goal, terms.ball, terms.approach, terms.possession, terms.total)
         )
-        rewards = goal_r + ball_r + approach_r + possession_r
         self._state = after
         play_mode = cycle.play_mode
         ball_returned = False
@@ -530,7 +528,7 @@ class RoboCupEnv:
             approach_shaping=approach_r,
             possession_shaping=possession_r,
             holder=np.asarray(terms.holder, np.float32),
-            scripted=self._scripted.reshape(2, -1).copy(),
+            scripted=scripted.reshape(2, -1),
             ball_returned=ball_returned,
         )
         assert self._state is not None
@@ -715,20 +713,22 @@ class RoboCupEnv:
         step = self._routines[0].clock % MATCH_CLOCK if self._match else self._step
         return self._memory.observation(step, self._last_actions, self._start_team)
 
-    def _apply_routines(self, commands: list[Command]) -> list[Command | None]:
+    def _apply_routines(
+        self, commands: list[Command]
+    ) -> tuple[list[Command | None], np.ndarray]:
         """In match episodes, each elevens side's commands with its match routines applied
-        (for the cycle last observed); in drills, ``commands`` unchanged. ``self._scripted``
-        (bool[2n]) marks the players a routine played for."""
+        (for the cycle last observed); in drills, ``commands`` unchanged. Also bool[2n]: the
+        players a routine played for."""
         out: list[Command | None] = list(commands)
-        self._scripted = np.zeros(len(out), bool)
+        scripted = np.zeros(len(out), bool)
         if not self._match or self._last_cycle is None:
-            return out
+            return out, scripted
         n = self.players_per_team
         for routines in self._routines:
             own = slice(routines.side * n, (routines.side + 1) * n)
             out[own], _ = routines.apply(out[own], self._memory, self._last_cycle)
-            self._scripted[own] = routines.scripted
-        return out
+            scripted[own] = routines.scripted
+        return out, scripted
 
     def _keep_ball_in_play(self, cycle: Cycle, before: State) -> bool:
         """Bounce a ball that left (or is about to leave) over a side line or a goal line outside

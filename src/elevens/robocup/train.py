@@ -400,7 +400,7 @@ def play_iteration(
             possession = np.asarray(info["possession_shaping"])[side]
             terms[:, g] = goal, ball, approach, possession
             holder[g] = np.asarray(info["holder"])[side]
-            scripted[g] = np.asarray(info.get("scripted", np.zeros((2, n), bool)))[side]
+            scripted[g] = np.asarray(info["scripted"])[side]
             rewards[g] = goal + (ball + approach + possession if shaping_active else 0.0)
             # A restart cuts the episode short; a fresh one starts next step.
             done[g] = logs[g].add(info, side)

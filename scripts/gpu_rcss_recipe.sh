@@ -8,6 +8,7 @@
 # reward for having the ball (POSSESSION=w_p, EnvParams.possession_shaping_weight; 0: off),
 # by the last touch (POSSESSION_BY=touch) or by nearness (near, the default).
 # KIND=league plays past snapshots instead of the Polyak-averaged copy (opponent.kind).
+# MIXED names the handcrafted team of the MIX share (rcss_naive; rcss_passer keeps the ball).
 #   R=/tmp/gpuruns INIT=docs/results/robocup_teams/rcss-gpu MIN=8 bash scripts/gpu_rcss_recipe.sh
 # With OUT set (the device tool's output folder), the run directory is packed into
 # $OUT/rcss.tgz. Then, here: elevens robocup match --team0 $R/rcss --team1-cmd "$H ..."
@@ -20,7 +21,7 @@ if [ "${RULES:-1}" = "1" ]; then rules="--env.stamina --env.goalie"; fi
 if [ "$MIX" = "0" ]; then
   opponents="${MIX2V2:+--env.mix 2v2 --env.mix-shares $MIX2V2}"
 else
-  opponents="--opponent.mix rcss_naive=$MIX"
+  opponents="--opponent.mix ${MIXED:-rcss_naive}=$MIX"
 fi
 $PY -m elevens train 11v11 --env.physics rcss --network.actions 12 --network.features 64 \
   --network.num-heads 4 --network.lstm-features 32 --network.lstm-layers 2 \
@@ -35,4 +36,10 @@ $PY -m elevens train 11v11 --env.physics rcss --network.actions 12 --network.fea
   --iterations-per-chunk "${CHUNK:-5}" --run.checkpoint-every 20 --run.keep-checkpoints 6 \
   --run.iterations 1000000 --run.eval-teams --run.no-write-gif \
   --run.max-minutes "${MIN:-8}" --run.run-dir "$R/rcss"
-if [ -n "${OUT:-}" ]; then (cd "$R" && tar czf "$OUT/rcss.tgz" rcss); fi
+# Only the newest checkpoint comes back: the device tool refuses large files (a league run's
+# six checkpoints came to 55 MB).
+if [ -n "${OUT:-}" ]; then
+  newest=$(ls "$R/rcss/checkpoints" | sort -n | tail -1)
+  (cd "$R" && tar czf "$OUT/rcss.tgz" $(find rcss -mindepth 1 -maxdepth 1 ! -name checkpoints) \
+    "rcss/checkpoints/$newest")
+fi

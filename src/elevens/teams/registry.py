@@ -7,6 +7,7 @@ import dataclasses
 from elevens.env import EnvParams
 from elevens.teams.base import TeamPolicy
 from elevens.teams.rcss_naive import RcssNaiveTeam
+from elevens.teams.rcss_passer import RcssPasserTeam
 from elevens.teams.scripted import Field, NaiveTeam, RandomTeam, TeamworkTeam
 
 HANDCRAFTED: dict[str, TeamPolicy] = {
@@ -14,6 +15,7 @@ HANDCRAFTED: dict[str, TeamPolicy] = {
     "naive": NaiveTeam(),
     "teamwork": TeamworkTeam(),
     "rcss_naive": RcssNaiveTeam(),
+    "rcss_passer": RcssPasserTeam(),
 }
 
 
@@ -44,7 +46,7 @@ def resolve_team(name: str, params: EnvParams | None = None) -> TeamPolicy:
     if params is None:
         return team
     field = Field.of(params)
-    if isinstance(team, RcssNaiveTeam):  # its default is rcssserver's field, not SPEC.md's
+    if isinstance(team, RcssNaiveTeam | RcssPasserTeam):  # rcssserver's field by default
         return dataclasses.replace(team, field=field)
     if field == Field():
         return team

@@ -9,6 +9,8 @@
 # by the last touch (POSSESSION_BY=touch) or by nearness (near, the default).
 # KIND=league plays past snapshots instead of the Polyak-averaged copy (opponent.kind).
 # MIXED names the handcrafted team of the MIX share (rcss_naive; rcss_passer keeps the ball).
+# APPROACH sets the approach shaping weight (each player paid for running at the ball; the
+# game's default, 0.05, when unset; 0 stops paying the whole team to crowd the ball).
 #   R=/tmp/gpuruns INIT=docs/results/robocup_teams/rcss-gpu MIN=8 bash scripts/gpu_rcss_recipe.sh
 # With OUT set (the device tool's output folder), the run directory is packed into
 # $OUT/rcss.tgz. Then, here: elevens robocup match --team0 $R/rcss --team1-cmd "$H ..."
@@ -28,6 +30,7 @@ $PY -m elevens train 11v11 --env.physics rcss --network.actions 12 --network.fea
   --env.field-length 105 --env.field-width 68 --env.goal-width 14.02 --env.ball-friction 0.94 \
   --env.ball-max-speed 3 --env.see-period "${SEE:-3}" $rules \
   --env.possession-shaping-weight "${POSSESSION:-0}" --env.possession-by "${POSSESSION_BY:-near}" \
+  ${APPROACH:+--env.approach-shaping-weight $APPROACH} \
   --run.init-from "${INIT:-docs/results/robocup_teams/rcss-gpu}" $opponents \
   --games-per-iteration "${G:-128}" --ppo.minibatch-size "${MB:-352}" \
   --ppo.learning-rate 3e-4 --ppo.advantage-estimator gae --ppo.normalize-advantages \

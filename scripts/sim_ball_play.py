@@ -5,9 +5,11 @@
 HOME and AWAY are team specs as `elevens tournament` takes them (rcss_naive, rcss_passer, a run
 directory). `--set` changes a field of a handcrafted HOME team, e.g. `--set chasers=11`. The
 games are 11 v 11, 400 cycles, the server's see timing (every third cycle), stamina and the
-goalie routine, HOME always on the left. Prints the goals, each team's kicks a game, how often a
-kick was next touched by a teammate or by an opponent, and the share of cycles the ball spent
-in HOME's half.
+goalie routine, HOME always on the left. Prints the goals, each team's kicks a game (and the
+player-cycles it had the ball within kicking reach), how often a
+kick was next touched by a teammate or by an opponent, how many of each team's players were
+within 10 m of the ball on average (how much it crowds the ball), and the share of cycles the
+ball spent in HOME's half.
 """
 
 from __future__ import annotations
@@ -19,9 +21,11 @@ import json
 import jax
 import numpy as np
 
-from elevens.env.rcss import RcssSoccer
+from elevens.env.rcss import DEFAULT, RcssSoccer
 from elevens.eval.match import play_match
 from elevens.runs.teams import fit_to_field, load_team
+
+CROWD_RADIUS = 10.0
 
 
 def next_touches(kicks: np.ndarray, n: int) -> np.ndarray:
@@ -67,14 +71,23 @@ def main() -> None:
     kicks = np.asarray(record.kicks)
     touches = next_touches(kicks, n)
     ball_x = np.asarray(record.ball_position)[..., 0]
+    gaps = np.linalg.norm(
+        np.asarray(record.positions) - np.asarray(record.ball_position)[:, :, None, :], axis=-1
+    )
+    kickable = (
+        (gaps <= DEFAULT.kickable_distance).reshape(*gaps.shape[:2], 2, n).sum(axis=(0, 1, 3))
+    )
+    crowd = (gaps <= CROWD_RADIUS).reshape(*gaps.shape[:2], 2, n).sum(axis=-1).mean(axis=(0, 1))
     print(
         f"goals {int(np.sum(result.goals_for))} - {int(np.sum(result.goals_against))} "
         f"in {args.games} games"
     )
     for side, name in enumerate((args.home, args.away)):
         print(
-            f"{name}: {kicks[..., side * n : (side + 1) * n].sum() / args.games:.1f} kicks a game; "
-            f"next touch by a teammate {touches[side, 0]}, by an opponent {touches[side, 1]}"
+            f"{name}: {kicks[..., side * n : (side + 1) * n].sum() / args.games:.1f} kicks a game "
+            f"({kickable[side] / args.games:.0f} kickable player-cycles); "
+            f"next touch by a teammate {touches[side, 0]}, by an opponent {touches[side, 1]}; "
+            f"{crowd[side]:.1f} players within {CROWD_RADIUS:.0f} m of the ball"
         )
     print(f"ball in {args.home}'s half {np.mean(ball_x < 0):.0%} of the cycles")
 

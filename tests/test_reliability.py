@@ -188,6 +188,8 @@ def mutate(path: Path, edits: list[tuple[int, int]], truncate: int | None) -> No
     path.write_bytes(bytes(data))
 
 
+@pytest.mark.filterwarnings("error::ResourceWarning")  # a damaged replay leaves no file open
+@pytest.mark.filterwarnings("error::pytest.PytestUnraisableExceptionWarning")
 @settings(max_examples=60, deadline=5000, suppress_health_check=FIXTURES)
 @given(edits=MUTATIONS, truncate=st.none() | st.integers(min_value=0))
 def test_mutated_replays_raise_only_replay_errors(

@@ -310,7 +310,8 @@ def load_replay(path: str | Path) -> Replay:
     if magic != b"PK\x03\x04":  # every .npz is a zip archive; numpy's own error talks of pickles
         raise ReplayError(f"{where}: not an .npz archive (not an elevens replay?)")
     try:
-        with np.load(path, allow_pickle=False) as archive:
+        # Our own handle: np.load leaks the one it opens when the zip directory is damaged.
+        with path.open("rb") as handle, np.load(handle, allow_pickle=False) as archive:
             names = set(archive.files)
             if "header" not in names:
                 raise ReplayError(f"{where}: no header array (not an elevens replay?)")

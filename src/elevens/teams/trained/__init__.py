@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import zipfile
+import zlib
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -94,9 +95,10 @@ def load_networks(directory: str | Path) -> tuple[dict[str, Any], dict[str, Any]
     if not isinstance(config, dict):
         raise ShippedTeamError(f"{config_path} holds no config object")
     try:
-        with np.load(networks_path, allow_pickle=False) as archive:
+        # Our own handle: np.load leaks the one it opens when the zip directory is damaged.
+        with networks_path.open("rb") as handle, np.load(handle, allow_pickle=False) as archive:
             flat = {name: np.asarray(archive[name]) for name in archive.files}
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as error:
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError, zlib.error) as error:
         raise ShippedTeamError(
             f"{networks_path} cannot be read as a NumPy .npz archive: {error}"
         ) from None

@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import re
 import signal
 from collections.abc import Sequence
 from pathlib import Path
@@ -672,7 +673,16 @@ def test_robocup_train_refuses_game_fields_the_server_sets() -> None:
                         ("env.kick_impulse", 2.0)):
         with pytest.raises(ValueError, match=f"{flag}={value!r} is invalid in elevens robocup"):
             make_robocup_config(**{flag: value})
-    # The ones it passes on are fine.
+    # The simulator's game setup beside EnvParams: team-size mixes and its bodies (stamina,
+    # the goalie routine and see timing need those bodies, so they are refused with them).
+    for flag, value, also in (("env.mix", ("1v1",), {"env.mix_shares": (0.5,)}),
+                              ("env.physics", "rcss", {}),
+                              ("env.physics", "rcss", {"env.stamina": True, "env.goalie": True})):
+        message = re.escape(f"{flag}={value!r} is invalid in elevens robocup")
+        with pytest.raises(ValueError, match=message):
+            make_robocup_config(**{flag: value}, **also)
+    # The ones it passes on are fine, and so is the shaping schedule.
+    make_robocup_config(**{"env.shaping_schedule": False})
     make_robocup_config(**{"env.episode_length": 50, "env.goal_reward": 2.0,
                            "env.ball_shaping_weight": 0.0, "env.players_per_team": 3,
                            "ppo.minibatch_size": 3})

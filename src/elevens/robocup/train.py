@@ -115,6 +115,11 @@ SERVER_GAME_FIELDS = (
 )
 
 
+# The EnvConfig fields that only the simulator's game reads (EnvConfig.game and the shaping
+# schedule's are honoured); robocup train refuses them rather than ignore them.
+SERVER_ENV_FIELDS = ("mix", "mix_shares", "physics", "stamina", "goalie", "see_period")
+
+
 def _robocup_learner() -> LearnerConfig:
     # The simulator's 2v2 learner with table 6.1's learning rate, 200-cycle drills, one game
     # (server) per minibatch and one iteration per step of the host loop.
@@ -177,6 +182,16 @@ class RoboCupTrainConfig:
                         "simulator, whose players take the 2-value (move, rot) action; leave "
                         "it out (evaluate a 12-value team with elevens robocup match)"
                     )
+        env, default_env = self.learner.env, _robocup_learner().env
+        for name in SERVER_ENV_FIELDS:
+            value = getattr(env, name)
+            if value != getattr(default_env, name):
+                raise ValueError(
+                    f"env.{name}={value!r} is invalid in elevens robocup train: it sets up the "
+                    "simulator's game, and here rcssserver plays one team size with its own "
+                    "bodies, stamina, view and goalies (the match routines, with "
+                    "--server.episodes match); leave it out"
+                )
         game = self.learner.env.game
         default = _robocup_learner().env.game
         for field in dataclasses.fields(game):

@@ -108,21 +108,24 @@ def test_a_player_turns_to_a_ball_off_its_body_and_dashes_at_one_ahead() -> None
     assert float(dash.dash_direction) == pytest.approx(-math.degrees(math.atan2(1, 10)), abs=0.5)
 
 
+@dataclasses.dataclass(frozen=True)
+class StandStill:
+    """A 12-value team whose players do nothing (the no-op command) every cycle."""
+
+    name: str = "idle"
+
+    def init_carry(self, n: int) -> tuple[()]:
+        return ()
+
+    def act(self, params, carry, obs, key):
+        return carry, jnp.zeros((obs.self_features.shape[0], 12)).at[:, 4].set(1.0)
+
+
 def test_rcss_naive_scores_against_a_team_that_stands_still_and_eager_agrees_with_jit() -> None:
-    @dataclasses.dataclass(frozen=True)
-    class Idle:
-        name: str = "idle"
-
-        def init_carry(self, n: int) -> tuple[()]:
-            return ()
-
-        def act(self, params, carry, obs, key):
-            return carry, jnp.zeros((obs.self_features.shape[0], 12)).at[:, 4].set(1.0)
-
     env, params, _, _ = _game(2)
     params = params.replace(episode_length=120)
     naive = resolve_team("rcss_naive", params)
-    result = summary(play_match(env, params, naive, Idle(), jax.random.key(0), 2))
+    result = summary(play_match(env, params, naive, StandStill(), jax.random.key(0), 2))
     assert result["goals_for"] >= 1.0 and result["goals_against"] == 0.0
     obs, _ = _team_obs(2, (5.0, 3.0), 1.0, (7.0, 2.0))
     carry = naive.init_carry(2)

@@ -16,6 +16,7 @@ from elevens.eval.match import play_match
 from elevens.runs.teams import load_team
 from elevens.teams.rcss_passer import RcssPasserTeam
 from elevens.teams.registry import resolve_team
+from tests.teams.test_rcss_naive import StandStill
 
 N = 3  # keeper (player 0) and two outfield players a side
 
@@ -168,20 +169,10 @@ def test_eager_jit_and_vmap_agree_and_it_scores_in_whole_games() -> None:
         np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-5)
         np.testing.assert_allclose(a, c[1], rtol=1e-5, atol=1e-5)
     # Whole games against a team that stands still: it reaches the ball, moves it up and scores.
-    @dataclasses.dataclass(frozen=True)
-    class Idle:
-        name: str = "idle"
-
-        def init_carry(self, n: int) -> tuple[()]:
-            return ()
-
-        def act(self, params, carry, obs, key):
-            return carry, jnp.zeros((obs.self_features.shape[0], 12)).at[:, 4].set(1.0)
-
     env, params, _, _ = _game()
     params = params.replace(episode_length=150)
     passer = resolve_team("rcss_passer", params)
-    result = play_match(env, params, passer, Idle(), jax.random.key(0), 2)
+    result = play_match(env, params, passer, StandStill(), jax.random.key(0), 2)
     assert int(np.sum(result.goals_for)) >= 1 and int(np.sum(result.goals_against)) == 0
 
 

@@ -59,6 +59,7 @@ __all__ = [
     "dash_stamina",
     "collide",
     "kick_acceleration",
+    "kick_power_factor",
     "kickable",
     "push",
     "turn",
@@ -336,6 +337,21 @@ def kickable(
     return jnp.sqrt(jnp.sum(offset * offset, axis=-1)) <= params.kickable_distance
 
 
+def kick_power_factor(
+    body: jax.Array, player: jax.Array, ball: jax.Array, params: RcssParams = DEFAULT
+) -> jax.Array:
+    """The share of a kick's power that reaches the ball from where it lies, f32[...]:
+    ``1 - 0.25 * angle / 180 - 0.25 * gap / kickable_margin``, ``angle`` the ball's angle off
+    the body (degrees), ``gap`` the distance between the ball's and the player's edges
+    (rcssserver's kick model; the ball's acceleration is power * kick_power_rate * this)."""
+    offset = ball - player
+    distance = jnp.sqrt(jnp.sum(offset * offset, axis=-1))
+    off_body = jnp.arctan2(offset[..., 1], offset[..., 0]) - body
+    off_body = jnp.abs(jnp.arctan2(jnp.sin(off_body), jnp.cos(off_body)))
+    gap = distance - params.player_size - params.ball_size
+    return 1.0 - 0.25 * off_body / jnp.pi - 0.25 * gap / params.kickable_margin
+
+
 def kick_acceleration(
     power: jax.Array,
     direction_deg: jax.Array,
@@ -354,11 +370,7 @@ def kick_acceleration(
     direction = jnp.clip(direction_deg, -180.0, 180.0)
     offset = ball - player
     distance = jnp.sqrt(jnp.sum(offset * offset, axis=-1))
-    off_body = jnp.arctan2(offset[..., 1], offset[..., 0]) - body
-    off_body = jnp.abs(jnp.arctan2(jnp.sin(off_body), jnp.cos(off_body)))
-    gap = distance - params.player_size - params.ball_size
-    rate = 1.0 - 0.25 * off_body / jnp.pi - 0.25 * gap / params.kickable_margin
-    effective = power * params.kick_power_rate * rate
+    effective = power * params.kick_power_rate * kick_power_factor(body, player, ball, params)
     reach = distance <= params.kickable_distance
     accel = effective[..., None] * _unit(_world_angle(body, direction))
     return jnp.where(reach[..., None], accel, 0.0)

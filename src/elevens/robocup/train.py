@@ -192,8 +192,7 @@ class RoboCupTrainConfig:
                     "bodies, stamina, view and goalies (the match routines, with "
                     "--server.episodes match); leave it out"
                 )
-        game = self.learner.env.game
-        default = _robocup_learner().env.game
+        game, default = env.game, default_env.game
         for field in dataclasses.fields(game):
             value = getattr(game, field.name)
             if field.name not in SERVER_GAME_FIELDS and value != getattr(default, field.name):

@@ -24,7 +24,7 @@ import jax.numpy as jnp
 
 from elevens.env.rcss import DASH, DEFAULT, KICK, TURN, Commands, encode_thesis12, rcss_field
 from elevens.env.state import Observation
-from elevens.teams.scripted import BallMemory, Field, _wrap, read_view
+from elevens.teams.scripted import BallMemory, Field, TeamView, _wrap, read_view
 
 RCSS_FIELD = Field.of(rcss_field())
 """rcssserver's field and ball (``elevens.env.rcss.rcss_field``)."""
@@ -69,9 +69,14 @@ class RcssNaiveTeam:
     ) -> tuple[BallMemory, jax.Array]:
         """obs: one team's Observation [n] -> (BallMemory, actions f32[n, 12])."""
         view, carry = read_view(obs, carry, self.field, True, self.memory_steps)
+        return carry, self.play(view, carry.velocity)
+
+    def play(self, view: TeamView, ball_velocity: jax.Array) -> jax.Array:
+        """What each player does, from the team's view and the ball's velocity f32[n, 2]
+        (``BallMemory.velocity``): f32[n, 12]."""
         offset = view.ball - view.position
         distance = jnp.linalg.norm(offset, axis=-1)
-        target = self.meeting_points(view.ball, carry.velocity, view.position) if (
+        target = self.meeting_points(view.ball, ball_velocity, view.position) if (
             self.intercept
         ) else view.ball
         to_target = target - view.position
@@ -100,7 +105,7 @@ class RcssNaiveTeam:
             kick_direction=-jnp.degrees(to_goal),
             turn_moment=jnp.clip(turn_moment, -180.0, 180.0),
         )
-        return carry, encode_thesis12(commands)
+        return encode_thesis12(commands)
 
     def meeting_points(
         self, ball: jax.Array, velocity: jax.Array, position: jax.Array

@@ -27,7 +27,16 @@ import jax.numpy as jnp
 import numpy as np
 
 from elevens.env.params import formation
-from elevens.env.rcss import DASH, DEFAULT, KICK, TURN, Commands, RcssParams, encode_thesis12
+from elevens.env.rcss import (
+    DASH,
+    DEFAULT,
+    KICK,
+    TURN,
+    Commands,
+    RcssParams,
+    encode_thesis12,
+    kick_power_factor,
+)
 from elevens.env.state import ENTITY_FEATURES, Observation
 from elevens.teams.rcss_naive import RCSS_FIELD, RcssNaiveTeam
 from elevens.teams.scripted import BallMemory, Field, _wrap, read_view
@@ -101,8 +110,8 @@ class RcssPasserTeam:
         """obs: one team's Observation [n] -> (BallMemory, actions f32[n, 12])."""
         n = obs.self_features.shape[0]
         chase = dataclasses.replace(self.chase, field=self.field)
-        _, chase_actions = chase.act(params, carry, obs, key)
         view, carry = read_view(obs, carry, self.field, True, chase.memory_steps)
+        chase_actions = chase.play(view, carry.velocity)
         others, visible = self.others(obs, view.position, view.heading)
         mates, mates_visible = others[:, : n - 1], visible[:, : n - 1]
         opponents, opponents_visible = others[:, n - 1 :], visible[:, n - 1 :]
@@ -183,13 +192,9 @@ class RcssPasserTeam:
 
     def kick_power(self, speed: jax.Array, position, heading, ball) -> jax.Array:
         """The kick power (0..100) that gives the ball ``speed`` m/cycle from where it lies."""
-        offset = ball - position
-        distance = jnp.linalg.norm(offset, axis=-1)
-        off_body = jnp.abs(_wrap(jnp.arctan2(offset[:, 1], offset[:, 0]) - heading))
-        gap = distance - self.body.player_size - self.body.ball_size
-        rate = 1.0 - 0.25 * off_body / jnp.pi - 0.25 * gap / self.body.kickable_margin
-        effective = self.body.kick_power_rate * jnp.maximum(rate, 0.1)
-        return jnp.clip(speed / effective, 0.0, self.body.max_power)
+        # A floor on the factor keeps the power finite for a ball at the edge of reach behind.
+        factor = jnp.maximum(kick_power_factor(heading, position, ball, self.body), 0.1)
+        return jnp.clip(speed / (self.body.kick_power_rate * factor), 0.0, self.body.max_power)
 
     def kick(self, view, mates, mates_visible, opponents, opponents_visible) -> jax.Array:
         """What a player with the ball kicks: a shot, a pass or a dribble. f32[n, 12]."""

@@ -249,6 +249,23 @@ def test_match_cli_refuses_an_unknown_team_before_starting_anything(
     assert len(err) == 1 and "wizards does not exist" in err[0] and "elevens-11v11" in err[0]
 
 
+def test_a_log_folder_holding_an_earlier_match_is_refused_before_any_server_starts(
+    tmp_path: Path,
+) -> None:
+    # The server appends to an existing rcssserver.log: the earlier match's score line came
+    # first and was reported as this match's score.
+    (tmp_path / "match_001").mkdir()
+    (tmp_path / "match_001" / "rcssserver.log").write_text("Score: 0 - 0\n")
+    with pytest.raises(FileExistsError, match="match_001 already holds"):
+        play_matches(
+            ElevensTeam("naive", "elevens"), ExternalTeam("false", "other"), matches=2,
+            log_dir=tmp_path, rcssserver="/nonexistent/rcssserver", print_fn=lambda _: None,
+        )
+    with pytest.raises(FileExistsError, match="match_001 already holds"):
+        play_match(ElevensTeam("naive", "elevens"), ExternalTeam("false", "other"), match=1,
+                   log_dir=tmp_path, rcssserver="/nonexistent/rcssserver")
+
+
 def test_match_options_are_regulation() -> None:
     assert MATCH_OPTIONS["server::auto_mode"] == "true"
     assert MATCH_OPTIONS["server::half_time"] == "300"  # 3000 cycles a half

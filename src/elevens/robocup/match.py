@@ -191,6 +191,8 @@ def play_match(
     options = dict(MATCH_OPTIONS)
     options["server::synch_mode"] = "true" if synch else "false"
     options["server::half_time"] = str(half_time)
+    if log_dir is not None:
+        _check_new_log_folder(log_dir, match)
     work = Path(tempfile.mkdtemp(prefix="elevens-match-"))
     if log_dir is not None:
         game_logs = Path(log_dir) / f"match_{match:03d}"
@@ -262,6 +264,17 @@ def play_match(
         shutil.rmtree(work, ignore_errors=True)
 
 
+def _check_new_log_folder(log_dir: str | os.PathLike[str], match: int) -> None:
+    """A match's log folder must be new or empty: the server appends its output (and so its
+    score line) to an existing rcssserver.log, and readers of .rcg files take the first one."""
+    folder = Path(log_dir) / f"match_{match:03d}"
+    if folder.is_dir() and any(folder.iterdir()):
+        raise FileExistsError(
+            f"{folder} already holds an earlier match's logs; give a new --log-dir (the "
+            "score would be read from the earlier server output)"
+        )
+
+
 def _team_report(path: Path) -> dict[str, Any] | None:
     """The JSON line an elevens team prints at the end of its match (None: not one)."""
     for line in reversed(read_text(path).splitlines()):
@@ -287,6 +300,9 @@ def play_matches(
     JSON line appended per match to ``results_path``."""
     if matches < 1:
         raise ValueError(f"matches={matches!r} is invalid: it must be >= 1")
+    if kwargs.get("log_dir") is not None:
+        for m in range(matches):
+            _check_new_log_folder(kwargs["log_dir"], m)
     results = []
     for m in range(matches):
         result = play_match(team0, team1, match=m, **kwargs)

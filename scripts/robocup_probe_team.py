@@ -23,6 +23,11 @@ Probes:
   longko     naive; the kick-off goes long to the opponents' wing instead of back to midfield
   tackle     naive; a player with the ball 0-1.7 m ahead (and out of kicking reach) tackles
              it towards the opponent goal
+  mark       man-marking: the 2 players nearest the ball chase it as ``intercept`` does; each
+             other outfield player stands goal-side of one opponent (the most dangerous first:
+             nearest the own goal), 1.5 m from it on its line to the goal, leaning to the ball.
+             Pairs are kept from step to step; turns take off the turns commanded since the
+             last see and are scaled up by the server's inertia (1 + 5 x speed)
 
 Everything after PROBE goes to ``elevens robocup team``.
 """
@@ -38,12 +43,14 @@ import numpy as np
 import elevens.robocup.play as play
 import elevens.robocup.rules as rules
 import elevens.robocup.team as team
+from elevens.env.state import ENTITY_FEATURES
 from elevens.robocup.actions import ActionIndex
 from elevens.robocup.naive import _COS, _SIN, _X, _Y, NaiveMemory, RoboCupNaiveTeam, _wrap
 from elevens.robocup.protocol import Kick, Tackle
 
 PROBES = (
-    "naive12", "clear12", "screen", "bus", "intercept", "dribble12", "combo12", "longko", "tackle"
+    "naive12", "clear12", "screen", "bus", "intercept", "dribble12", "combo12", "longko", "tackle",
+    "mark",
 )
 OWN_GOAL = np.array([-52.5, 0.0])
 
@@ -159,6 +166,136 @@ class Intercept(RoboCupNaiveTeam):
         return dataclasses.replace(carry, turned=turned), out
 
 
+_ENTITY_DISTANCE = ENTITY_FEATURES.index("distance")
+_ENTITY_COS = ENTITY_FEATURES.index("cos_bearing")
+_ENTITY_SIN = ENTITY_FEATURES.index("sin_bearing")
+
+
+@dataclasses.dataclass
+class MarkMemory:
+    naive: NaiveMemory
+    opponents: np.ndarray  # f64[n, 2] last known position of each opponent slot, team frame
+    age: np.ndarray  # i64[n] steps since that slot was seen
+    marking: np.ndarray  # i64[n] the opponent slot each player marked last step (-1: none)
+    speed: np.ndarray  # f64[n] m/cycle, estimated from the commands sent (for turns)
+
+
+class Mark(Intercept):
+    """Two chasers for the rolling ball; the rest mark the opponents nearest the own goal."""
+
+    chasers = 2
+    forget_steps = 30
+    goal_side = 1.5  # m from the marked opponent towards the own goal
+    lean = 0.7  # m from the marked opponent towards the ball (cuts the pass)
+    inertia_moment = 5.0  # server::inertia_moment
+    player_decay = 0.4  # server::player_decay
+
+    def init_carry(self, players_per_team: int) -> MarkMemory:
+        n = players_per_team
+        return MarkMemory(
+            NaiveMemory.empty(n), np.zeros((n, 2)), np.full(n, 1 << 20, np.int64),
+            np.full(n, -1, np.int64), np.zeros(n),
+        )
+
+    def act(self, params, carry, obs, key=None):
+        naive_carry, out = super().act(params, carry.naive, obs, key)
+        position, heading = _pose(self, obs)
+        n = len(position)
+        opponents, age = self._sight_opponents(obs, position, heading, carry)
+        carry = MarkMemory(naive_carry, opponents, age, np.full(n, -1, np.int64), carry.speed)
+        if naive_carry.age.min() > self.memory_steps:
+            return carry, out  # nobody knows where the ball is: the naive search
+        ball = naive_carry.ball.mean(axis=0)
+        distance = np.hypot(*(position - ball).T)
+        distance[0] = np.inf  # the goalie has its own rule
+        chasing = set(np.argsort(distance)[: self.chasers].tolist())
+        markers = [i for i in range(1, n) if i not in chasing]
+        known = [
+            j for j in range(1, n)  # not the goalie (unum 1)
+            if age[j] <= self.forget_steps and opponents[j, 0] < 36.0
+            and np.hypot(*(opponents[j] - ball)) > 3.0
+        ]
+        known.sort(key=lambda j: np.hypot(*(opponents[j] - OWN_GOAL)))
+        wanted = known[: len(markers)]
+        # Keep last step's pairs (positions are a few cycles stale: re-pairing each step
+        # sends markers back and forth), then pair the rest, most dangerous first.
+        marking = np.full(n, -1, np.int64)
+        for i in markers:
+            if carry.marking[i] in wanted:
+                marking[i] = carry.marking[i]
+        for j in wanted:
+            if j in marking:
+                continue
+            free = [i for i in markers if marking[i] < 0]
+            i = min(free, key=lambda i: np.hypot(*(position[i] - opponents[j])))
+            marking[i] = j
+        spare = [i for i in markers if marking[i] < 0]
+        screen = Block._targets(Block(), ball, len(spare)) if spare else []
+        targets = {}
+        for i in markers:
+            j = int(marking[i])
+            if j < 0:
+                continue
+            to_goal, to_ball = OWN_GOAL - opponents[j], ball - opponents[j]
+            target = (
+                opponents[j]
+                + self.goal_side * to_goal / (np.hypot(*to_goal) + 1e-9)
+                + self.lean * to_ball / (np.hypot(*to_ball) + 1e-9)
+            )
+            targets[i] = np.clip(target, [-51.0, -33.0], [52.0, 33.0])
+        for k, i in enumerate(sorted(spare, key=lambda i: position[i, 0])):
+            targets[i] = min(screen[k:], key=lambda t: np.hypot(*(position[i] - t)))
+        # Headings are the last see's (every 3rd cycle): take off the turns commanded since,
+        # as Intercept does, or a marker turns again on the same stale bearing and spins.
+        turned = naive_carry.turned.copy()
+        for i, target in targets.items():
+            rot = out[i][1]
+            before = turned[i] - (math.radians(-rot * self.turn_scale) if rot else 0.0)
+            offset = target - position[i]
+            gap = float(np.hypot(*offset))
+            close = gap < 1.0
+            aim = ball - position[i] if close else offset  # there: face the ball
+            angle = _wrap(math.atan2(aim[1], aim[0]) - heading[i] - before)
+            if close and abs(angle) <= 0.5:
+                out[i], turned[i] = (0.0, 0.0), before
+            elif close or abs(angle) > math.radians(40.0):
+                # The server divides a turn by 1 + inertia_moment x speed.
+                slowdown = 1.0 + self.inertia_moment * carry.speed[i]
+                moment = float(np.clip(-math.degrees(angle) * slowdown, -180.0, 180.0))
+                out[i] = (0.0, float(np.clip(moment / self.turn_scale, -1, 1)))
+                turned[i] = before - math.radians(out[i][1] * self.turn_scale) / slowdown
+            else:  # a dash within 40 degrees still closes most of the gap
+                out[i], turned[i] = (min(1.0, 0.4 + gap / 3.0), 0.0), before
+        move = np.array([out[i][0] if len(out[i]) == 2 else 0.0 for i in range(n)])
+        speed = self.player_decay * np.minimum(carry.speed + 0.6 * np.abs(move), 1.05)
+        carry = MarkMemory(
+            dataclasses.replace(naive_carry, turned=turned), opponents, age, marking, speed
+        )
+        return carry, out
+
+    def _sight_opponents(self, obs, position, heading, carry):
+        """Each opponent slot from the teammate that sees it nearest, else from memory."""
+        entities = np.asarray(obs.entities, np.float64)
+        mask = np.asarray(obs.entity_mask)
+        n = len(position)
+        opponents, age = carry.opponents.copy(), np.minimum(carry.age + 1, 1 << 20)
+        nearest = np.full(n, np.inf)
+        for i in range(n):
+            for j in range(n):
+                slot = n - 1 + j
+                if not mask[i, slot]:
+                    continue
+                d = entities[i, slot, _ENTITY_DISTANCE] * self.field_length
+                if d >= nearest[j]:
+                    continue
+                bearing = math.atan2(entities[i, slot, _ENTITY_SIN], entities[i, slot, _ENTITY_COS])
+                direction = heading[i] + bearing
+                unit = np.array([math.cos(direction), math.sin(direction)])
+                opponents[j] = position[i] + d * unit
+                nearest[j], age[j] = d, 0
+        return opponents, age
+
+
 def _long_kick_off(original):
     def kick(view, player, play_mode, n):
         if play_mode.startswith("kick_off"):
@@ -195,6 +332,7 @@ def _player(probe: str, turn_scale: float) -> play._Player:
         "intercept": (Intercept(action="sim", turn_scale=turn_scale), 2),
         "dribble12": (RoboCupNaiveTeam(action="thesis12", kick_power=35.0), 12),
         "combo12": (RoboCupNaiveTeam(action="thesis12", kick_power=35.0, intercept=True), 12),
+        "mark": (Mark(action="sim", turn_scale=turn_scale), 2),
     }
     naive, actions = teams.get(probe, (RoboCupNaiveTeam(action="sim", turn_scale=turn_scale), 2))
 

@@ -30,6 +30,7 @@ axes), jit- and vmap-safe.
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Any, NamedTuple
 
 import jax
@@ -337,6 +338,13 @@ def kickable(
     return jnp.sqrt(jnp.sum(offset * offset, axis=-1)) <= params.kickable_distance
 
 
+def kick_rate_factor(off_body: Any, gap: Any, kickable_margin: Any) -> Any:
+    """rcssserver's kick model, arithmetic only (JAX arrays here, host floats in the bridge's
+    percept memory): ``1 - 0.25 * off_body / pi - 0.25 * gap / kickable_margin``, ``off_body``
+    the ball's angle off the body (radians, absolute), ``gap`` between the edges (m)."""
+    return 1.0 - 0.25 * off_body / math.pi - 0.25 * gap / kickable_margin
+
+
 def kick_power_factor(
     body: jax.Array, player: jax.Array, ball: jax.Array, params: RcssParams = DEFAULT
 ) -> jax.Array:
@@ -349,7 +357,7 @@ def kick_power_factor(
     off_body = jnp.arctan2(offset[..., 1], offset[..., 0]) - body
     off_body = jnp.abs(jnp.arctan2(jnp.sin(off_body), jnp.cos(off_body)))
     gap = distance - params.player_size - params.ball_size
-    return 1.0 - 0.25 * off_body / jnp.pi - 0.25 * gap / params.kickable_margin
+    return kick_rate_factor(off_body, gap, params.kickable_margin)
 
 
 def kick_acceleration(

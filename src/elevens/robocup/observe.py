@@ -35,6 +35,7 @@ import numpy as np
 
 from elevens.env.params import EnvParams
 from elevens.env.rcss import DEFAULT as RCSS_BODY
+from elevens.env.rcss import kick_rate_factor
 from elevens.env.state import (
     ENTITY_FEATURES,
     NUM_ENTITY_FEATURES,
@@ -511,11 +512,8 @@ class PerceptMemory:
         gap = math.hypot(*offset) - body.player_size - body.ball_size
         if gap > body.kickable_margin:
             return
-        angle = abs(math.degrees(math.remainder(math.atan2(offset[1], offset[0]) - heading,
-                                                2 * math.pi)))
-        rate = body.kick_power_rate * (
-            1.0 - 0.25 * angle / 180.0 - 0.25 * max(gap, 0.0) / body.kickable_margin
-        )
+        angle = abs(math.remainder(math.atan2(offset[1], offset[0]) - heading, 2 * math.pi))
+        rate = body.kick_power_rate * kick_rate_factor(angle, max(gap, 0.0), body.kickable_margin)
         power = max(0.0, min(body.max_power, kick.power))
         accel = min(power * rate, body.ball_accel_max)
         direction = heading - math.radians(max(-180.0, min(180.0, kick.direction)))

@@ -61,11 +61,43 @@ def _pose(team: RoboCupNaiveTeam, obs) -> tuple[np.ndarray, np.ndarray]:
     return position, np.arctan2(f[:, _SIN], f[:, _COS])
 
 
-def _turn_or_dash(team: RoboCupNaiveTeam, angle: float, distance: float) -> tuple[float, float]:
-    """A "sim" action heading for a point ``angle`` (radians, + left) and ``distance`` away."""
-    if abs(angle) > math.radians(20.0):
-        return 0.0, float(np.clip(-math.degrees(angle) / team.turn_scale, -1.0, 1.0))
-    return min(1.0, distance / 5.0 + 0.3), 0.0
+INERTIA_MOMENT = 5.0  # server::inertia_moment: a turn is divided by 1 + this x speed
+PLAYER_DECAY = 0.4  # server::player_decay
+
+
+def _steer(team, out, turned, speed, i, target, ball, position, heading, arrive=1.0) -> None:
+    """Player i heads for ``target`` and, within ``arrive`` m of it, faces the ball ("sim"
+    actions, out[i] and turned[i] set in place). Headings are the last see's (every 3rd
+    cycle): the turns commanded since are taken off, or the player turns again on the same
+    stale bearing and spins; a turn is scaled up by the server's inertia at ``speed[i]``."""
+    rot = out[i][1]
+    before = turned[i] - (math.radians(-rot * team.turn_scale) if rot else 0.0)
+    offset = target - position[i]
+    gap = float(np.hypot(*offset))
+    close = gap < arrive
+    aim = ball - position[i] if close else offset
+    angle = _wrap(math.atan2(aim[1], aim[0]) - heading[i] - before)
+    if close and abs(angle) <= 0.5:
+        out[i], turned[i] = (0.0, 0.0), before
+    elif close or abs(angle) > math.radians(40.0):
+        slowdown = 1.0 + INERTIA_MOMENT * speed[i]
+        moment = float(np.clip(-math.degrees(angle) * slowdown, -180.0, 180.0))
+        out[i] = (0.0, float(np.clip(moment / team.turn_scale, -1, 1)))
+        turned[i] = before - math.radians(out[i][1] * team.turn_scale) / slowdown
+    else:  # a dash within 40 degrees still closes most of the gap
+        out[i], turned[i] = (min(1.0, 0.4 + gap / 3.0), 0.0), before
+
+
+def _next_speed(out, speed: np.ndarray) -> np.ndarray:
+    """Each player's speed after this step's "sim" actions (a dash of |move| x 100 power)."""
+    move = np.abs(np.asarray(out, np.float64)[:, 0])
+    return PLAYER_DECAY * np.minimum(speed + 0.6 * move, 1.05)
+
+
+@dataclasses.dataclass
+class SteerMemory:
+    naive: NaiveMemory
+    speed: np.ndarray  # f64[n] m/cycle, estimated from the commands sent (for turns)
 
 
 class Clear(RoboCupNaiveTeam):
@@ -87,11 +119,14 @@ class Block(RoboCupNaiveTeam):
     bus: bool = False
     chasers: int = 2
 
+    def init_carry(self, players_per_team: int) -> SteerMemory:
+        return SteerMemory(NaiveMemory.empty(players_per_team), np.zeros(players_per_team))
+
     def act(self, params, carry, obs, key=None):
-        carry, out = super().act(params, carry, obs, key)
+        naive_carry, out = super().act(params, carry.naive, obs, key)
         position, heading = _pose(self, obs)
         n = len(position)
-        ball = carry.ball.mean(axis=0)
+        ball = naive_carry.ball.mean(axis=0)
         distance = np.hypot(*(position - ball).T)
         distance[0] = np.inf  # the goalie has its own rule
         if self.bus:
@@ -101,18 +136,13 @@ class Block(RoboCupNaiveTeam):
         holding = [i for i in range(1, n) if i not in chasing]
         targets = self._targets(ball, len(holding))
         free = list(range(len(targets)))
+        turned = naive_carry.turned.copy()
         for i in sorted(holding, key=lambda i: position[i, 0]):
             j = min(free, key=lambda j: np.hypot(*(position[i] - targets[j])))
             free.remove(j)
-            offset = targets[j] - position[i]
-            if np.hypot(*offset) < 1.5:  # there: face the ball
-                to_ball = ball - position[i]
-                angle = _wrap(math.atan2(to_ball[1], to_ball[0]) - heading[i])
-                out[i] = _turn_or_dash(self, angle, 0.0) if abs(angle) > 0.5 else (0.0, 0.0)
-            else:
-                angle = _wrap(math.atan2(offset[1], offset[0]) - heading[i])
-                out[i] = _turn_or_dash(self, angle, float(np.hypot(*offset)))
-        return carry, out
+            _steer(self, out, turned, carry.speed, i, targets[j], ball, position, heading, 1.5)
+        naive_carry = dataclasses.replace(naive_carry, turned=turned)
+        return SteerMemory(naive_carry, _next_speed(out, carry.speed)), out
 
     def _targets(self, ball: np.ndarray, m: int) -> list[np.ndarray]:
         to_goal = OWN_GOAL - ball
@@ -187,8 +217,6 @@ class Mark(Intercept):
     forget_steps = 30
     goal_side = 1.5  # m from the marked opponent towards the own goal
     lean = 0.7  # m from the marked opponent towards the ball (cuts the pass)
-    inertia_moment = 5.0  # server::inertia_moment
-    player_decay = 0.4  # server::player_decay
 
     def init_carry(self, players_per_team: int) -> MarkMemory:
         n = players_per_team
@@ -243,31 +271,13 @@ class Mark(Intercept):
                 + self.lean * to_ball / (np.hypot(*to_ball) + 1e-9)
             )
             targets[i] = np.clip(target, [-51.0, -33.0], [52.0, 33.0])
-        for k, i in enumerate(sorted(spare, key=lambda i: position[i, 0])):
-            targets[i] = min(screen[k:], key=lambda t: np.hypot(*(position[i] - t)))
-        # Headings are the last see's (every 3rd cycle): take off the turns commanded since,
-        # as Intercept does, or a marker turns again on the same stale bearing and spins.
+        for i in sorted(spare, key=lambda i: position[i, 0]):
+            k = min(range(len(screen)), key=lambda k: np.hypot(*(position[i] - screen[k])))
+            targets[i] = screen.pop(k)
         turned = naive_carry.turned.copy()
         for i, target in targets.items():
-            rot = out[i][1]
-            before = turned[i] - (math.radians(-rot * self.turn_scale) if rot else 0.0)
-            offset = target - position[i]
-            gap = float(np.hypot(*offset))
-            close = gap < 1.0
-            aim = ball - position[i] if close else offset  # there: face the ball
-            angle = _wrap(math.atan2(aim[1], aim[0]) - heading[i] - before)
-            if close and abs(angle) <= 0.5:
-                out[i], turned[i] = (0.0, 0.0), before
-            elif close or abs(angle) > math.radians(40.0):
-                # The server divides a turn by 1 + inertia_moment x speed.
-                slowdown = 1.0 + self.inertia_moment * carry.speed[i]
-                moment = float(np.clip(-math.degrees(angle) * slowdown, -180.0, 180.0))
-                out[i] = (0.0, float(np.clip(moment / self.turn_scale, -1, 1)))
-                turned[i] = before - math.radians(out[i][1] * self.turn_scale) / slowdown
-            else:  # a dash within 40 degrees still closes most of the gap
-                out[i], turned[i] = (min(1.0, 0.4 + gap / 3.0), 0.0), before
-        move = np.array([out[i][0] if len(out[i]) == 2 else 0.0 for i in range(n)])
-        speed = self.player_decay * np.minimum(carry.speed + 0.6 * np.abs(move), 1.05)
+            _steer(self, out, turned, carry.speed, i, target, ball, position, heading)
+        speed = _next_speed(out, carry.speed)
         carry = MarkMemory(
             dataclasses.replace(naive_carry, turned=turned), opponents, age, marking, speed
         )

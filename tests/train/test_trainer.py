@@ -379,10 +379,12 @@ def test_resume_refuses_another_config_and_fresh_runs_refuse_old_dirs(
     assert str(tree_file) in error
     assert f"checkpoint 2 ({checkpoints / '2'}) is intact: pass --resume-from-last-good" in error
     assert files_under(checkpoints) == damaged
-    # --resume-from-last-good goes on from iteration 2; the damaged checkpoint is kept aside.
-    result = train_command(
-        TrainArgs(config=even_longer, resume_from_last_good=True, progress=False)
-    )
+    # --resume-from-last-good goes on from iteration 2 (the older config: warned again); the
+    # damaged checkpoint is kept aside.
+    with pytest.warns(UserWarning, match="learner.opponent.league_window"):
+        result = train_command(
+            TrainArgs(config=even_longer, resume_from_last_good=True, progress=False)
+        )
     assert result.iteration == 6
     aside = tmp_path / "damaged_checkpoints" / "4"
     assert (aside / "tree" / TREE_FILE).read_text() == "{not json"

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from elevens.cli import main
-from elevens.robocup.external import connected_players, start_team, stop_team
+from elevens.robocup.external import connected_players, start_team, stop_team, wait_connected
 from elevens.robocup.match import (
     MATCH_OPTIONS,
     ElevensTeam,
@@ -229,6 +229,24 @@ def test_an_external_team_command_gets_the_servers_ports_and_its_name(tmp_path: 
                              "connected.\nA new (v18) player (H 3) connected.", "H") == 2
 
 
+def test_a_start_command_that_fails_is_an_error_at_once_not_after_the_timeout(
+    tmp_path: Path,
+) -> None:
+    address = ServerAddress(7000, 7001, 7002)
+    log = tmp_path / "rcssserver.log"
+    log.write_text("Waiting for players to connect\n")
+    proc = start_team(str(tmp_path / "missing_start.sh"), address, "H", tmp_path / "out.txt")
+    began = time.monotonic()
+    with pytest.raises(FileNotFoundError, match=r"start command failed \(status 127\)") as error:
+        wait_connected(log, "H", 11, proc, tmp_path / "out.txt", 120.0, failed_start_grace_s=0.5)
+    assert time.monotonic() - began < 30.0
+    assert "missing_start.sh" in str(error.value)  # the shell's own message, from its output
+    # A launcher that exits 0 at once (start.sh leaves its players running) is waited for.
+    proc = start_team("true", address, "H", tmp_path / "out2.txt")
+    with pytest.raises(RuntimeError, match="connected 0 of 11 players within 1 s"):
+        wait_connected(log, "H", 11, proc, tmp_path / "out2.txt", 1.0)
+
+
 def test_match_cli_refuses_equal_team_names(capsys: pytest.CaptureFixture[str]) -> None:
     with pytest.raises(SystemExit) as exit_info:
         main(["robocup", "match", "--team1", "random", "--team1-name", "elevens",
@@ -236,6 +254,33 @@ def test_match_cli_refuses_equal_team_names(capsys: pytest.CaptureFixture[str]) 
     assert exit_info.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "both 'elevens'" in err[0]
+
+
+def test_match_cli_refuses_a_used_log_folder_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    (tmp_path / "match_000").mkdir()
+    (tmp_path / "match_000" / "rcssserver.log").write_text("Score: 0 - 0\n")
+    with pytest.raises(SystemExit) as exit_info:
+        main(["robocup", "match", "--team1", "random", "--log-dir", str(tmp_path),
+              "--rcssserver", sys.executable])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "match_000 already holds" in err[0]
+
+
+@needs_rcssserver
+def test_match_cli_names_a_start_command_that_does_not_exist_at_once(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    began = time.monotonic()
+    with pytest.raises(SystemExit) as exit_info:
+        main(["robocup", "match", "--team1-cmd", str(tmp_path / "start.sh"),
+              "--team1-name", "other", "--half-time", "3"])
+    assert exit_info.value.code == 2 and time.monotonic() - began < 60.0
+    err = capsys.readouterr().err
+    assert "team 'other': its start command failed (status 127)" in err
+    assert "Traceback" not in err
 
 
 def test_match_cli_refuses_an_unknown_team_before_starting_anything(

@@ -14,6 +14,7 @@ import re
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +25,7 @@ import pytest
 from elevens.cli import main
 from elevens.env.soccer import Soccer
 from elevens.robocup.actions import ActionIndex
+from elevens.robocup.external import TeamCommandNotFound
 from elevens.robocup.play import load_robocup_team, play_robocup
 from elevens.robocup.train import (
     RoboCupTrainConfig,
@@ -444,6 +446,24 @@ def test_server_training_against_an_external_team(tmp_path: Path) -> None:
         rows = list(csv.DictReader(f))
     assert [r["learner_side"] for r in rows] == ["0", "0"]
     assert all(r["missed"] == "0" and int(r["server_cycles"]) >= 1 for r in rows)
+
+
+@needs_rcssserver
+def test_server_training_names_an_opponent_command_that_does_not_exist_at_once(
+    tmp_path: Path,
+) -> None:
+    # Not retried: a restarted server would not make the command exist.
+    config = small_config(
+        tmp_path,
+        **{"env.players_per_team": 1, "games_per_iteration": 1, "env.episode_length": 20,
+           "server.rcssserver": os.environ.get("ELEVENS_RCSSSERVER"),
+           "server.opponent_cmd": f"{tmp_path / 'start.sh'} -p {{port}}",
+           "server.opponent_name": "fake"},
+    )
+    began = time.monotonic()
+    with pytest.raises(TeamCommandNotFound, match="start command failed .status 127."):
+        train_robocup(config, print_fn=lambda _: None)
+    assert time.monotonic() - began < 60.0
 
 
 @needs_rcssserver

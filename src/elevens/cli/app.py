@@ -246,8 +246,8 @@ def _expected_errors() -> tuple[type[BaseException], ...]:
     ShippedTeamError ...), missing files (RcssserverNotFound too) and damaged checkpoints."""
     from elevens.train.checkpoint import CheckpointError
 
-    return (ValueError, FileNotFoundError, NotADirectoryError, IsADirectoryError,
-            CheckpointError)
+    return (ValueError, FileNotFoundError, FileExistsError, NotADirectoryError,
+            IsADirectoryError, CheckpointError)
 
 
 def _interrupt(signum: int, frame: object) -> None:

@@ -54,7 +54,7 @@ from elevens.env.reward import reward_terms
 from elevens.env.state import GlobalState, Observation, State
 from elevens.robocup.actions import ACTION_SIZES, ActionScaling, actions_to_commands
 from elevens.robocup.client import Cycle, RoboCupClient, ServerDied
-from elevens.robocup.external import start_team, stop_team, wait_connected
+from elevens.robocup.external import TeamCommandNotFound, start_team, stop_team, wait_connected
 from elevens.robocup.observe import (
     FIELD_LENGTH,
     FIELD_WIDTH,
@@ -845,7 +845,7 @@ class RoboCupEnv:
             try:
                 self._connect()
                 return
-            except RcssserverNotFound:
+            except (RcssserverNotFound, TeamCommandNotFound):
                 raise
             except (RuntimeError, OSError) as error:  # ServerDied, a failed start, a socket
                 failures += 1
@@ -874,7 +874,7 @@ class RoboCupEnv:
                 self._connect_with_retries()
                 self._reset_episode()
                 return
-            except RcssserverNotFound:
+            except (RcssserverNotFound, TeamCommandNotFound):
                 raise
             except _DEAD as error:
                 failures += 1

@@ -18,7 +18,9 @@ from pathlib import Path
 
 from elevens.robocup.server import ServerAddress
 
-__all__ = ["connected_players", "start_team", "stop_team", "wait_connected"]
+__all__ = [
+    "TeamCommandNotFound", "connected_players", "start_team", "stop_team", "wait_connected"
+]
 
 _CONNECTED = re.compile(r"A new \(v\d+\) player \((\S+) (\d+)\) connected\.")
 
@@ -57,6 +59,11 @@ def start_team(
         )
 
 
+class TeamCommandNotFound(FileNotFoundError):  # noqa: N818 - reads as what happened
+    """A team's start command that the shell could not find or run (status 127 or 126):
+    restarting the server will not help."""
+
+
 def wait_connected(
     server_log: Path | None,
     team: str,
@@ -66,18 +73,35 @@ def wait_connected(
     timeout_s: float,
     *,
     exit_is_error: bool = False,
+    failed_start_grace_s: float = 5.0,
 ) -> None:
     """Wait until ``players`` players of ``team`` are in the server's log. Raises
     RuntimeError with the team's output when it takes longer than ``timeout_s``, or when the
     team's process exits first and ``exit_is_error`` (a start.sh exits at once, leaving its
-    players running: not an error)."""
+    players running: not an error). A start command that fails (a non-zero status, e.g. 127
+    for a script that does not exist) with no player connected ``failed_start_grace_s``
+    later is an error at once, not after ``timeout_s``: TeamCommandNotFound when the shell
+    found no such command (status 126 or 127), RuntimeError otherwise."""
     deadline = time.monotonic() + timeout_s
+    failed_at: float | None = None
     while (count := connected_players(read_text(server_log), team)) < players:
-        if exit_is_error and proc.poll() is not None:
+        status = proc.poll()
+        if exit_is_error and status is not None:
             raise RuntimeError(
-                f"team {team!r} exited (status {proc.returncode}) before connecting:\n"
+                f"team {team!r} exited (status {status}) before connecting:\n"
                 f"{read_text(output)[-2000:]}"
             )
+        if status not in (None, 0) and count == 0:
+            failed_at = failed_at if failed_at is not None else time.monotonic()
+            if time.monotonic() - failed_at > failed_start_grace_s:
+                message = (
+                    f"team {team!r}: its start command failed (status {status}) and no "
+                    f"player connected; its output:\n{read_text(output)[-2000:]}"
+                )
+                # The shell's statuses for a command not found (127) or not executable (126).
+                if status in (126, 127):
+                    raise TeamCommandNotFound(message)
+                raise RuntimeError(message)
         if time.monotonic() > deadline:
             raise RuntimeError(
                 f"team {team!r} connected {count} of {players} players within {timeout_s:g} s; "

@@ -256,6 +256,25 @@ def test_match_cli_refuses_equal_team_names(capsys: pytest.CaptureFixture[str]) 
     assert len(err) == 1 and "both 'elevens'" in err[0]
 
 
+@pytest.mark.parametrize(
+    ("flags", "message"),
+    [
+        (["--host", "no.such.host.invalid"], "--host 'no.such.host.invalid' cannot be resolved"),
+        (["--team-name", "bad/name"], "team name 'bad/name' must be 1-15 characters"),
+    ],
+)
+def test_team_cli_refuses_a_bad_host_or_name_before_compiling(
+    flags: list[str], message: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    with pytest.raises(SystemExit) as exit_info:
+        main(["robocup", "team", "--team", "naive", *flags])
+    assert exit_info.value.code == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
+    assert len(err) == 1 and message in err[0]
+    assert "compiled" not in captured.out  # refused before the policy's warm-up
+
+
 def test_match_cli_refuses_a_used_log_folder_in_one_line(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

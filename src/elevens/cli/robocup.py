@@ -401,10 +401,29 @@ def imitate(args: RoboCupImitateArgs) -> None:
         )
 
 
+def _resolvable(host: str) -> str:
+    """``host`` if it resolves to an IPv4 address (the server's UDP), else a ValueError."""
+    import socket
+
+    try:
+        socket.getaddrinfo(host, None, socket.AF_INET, socket.SOCK_DGRAM)
+    except (socket.gaierror, UnicodeError) as error:
+        reason = error.strerror if isinstance(error, socket.gaierror) else str(error)
+        raise ValueError(
+            f"--host {host!r} cannot be resolved ({reason}): give a host name or an IPv4 "
+            "address of the machine rcssserver runs on"
+        ) from None
+    return host
+
+
 def team(args: RoboCupTeamArgs) -> None:
+    from elevens.robocup.protocol import InitPlayer
     from elevens.robocup.server import ServerAddress
     from elevens.robocup.team import RoboCupTeam
 
+    # Bad names and hosts before the policy's compile, not after it.
+    InitPlayer(args.team_name)
+    address = ServerAddress.from_port(args.port, _resolvable(args.host))
     player = RoboCupTeam(
         args.team, players_per_team=args.players, team_name=args.team_name,
         synch=not args.real_time, rules=not args.no_rules, turn_scale=args.turn_scale,
@@ -414,7 +433,6 @@ def team(args: RoboCupTeamArgs) -> None:
     seconds = player.warm_up()
     if not args.json:
         print(f"{args.team_name}: compiled and ran the policy once in {seconds:.1f} s", flush=True)
-    address = ServerAddress.from_port(args.port, args.host)
     result = player.play(
         address,
         on_connect=None if args.json else (

@@ -45,7 +45,16 @@ import elevens.robocup.rules as rules
 import elevens.robocup.team as team
 from elevens.env.state import ENTITY_FEATURES
 from elevens.robocup.actions import ActionIndex
-from elevens.robocup.naive import _COS, _SIN, _X, _Y, NaiveMemory, RoboCupNaiveTeam, _wrap
+from elevens.robocup.naive import (
+    _COS,
+    _SIN,
+    _X,
+    _Y,
+    NEVER_SEEN,
+    NaiveMemory,
+    RoboCupNaiveTeam,
+    _wrap,
+)
 from elevens.robocup.protocol import Kick, Tackle
 
 PROBES = (
@@ -202,12 +211,10 @@ _ENTITY_SIN = ENTITY_FEATURES.index("sin_bearing")
 
 
 @dataclasses.dataclass
-class MarkMemory:
-    naive: NaiveMemory
+class MarkMemory(SteerMemory):
     opponents: np.ndarray  # f64[n, 2] last known position of each opponent slot, team frame
     age: np.ndarray  # i64[n] steps since that slot was seen
     marking: np.ndarray  # i64[n] the opponent slot each player marked last step (-1: none)
-    speed: np.ndarray  # f64[n] m/cycle, estimated from the commands sent (for turns)
 
 
 class Mark(Intercept):
@@ -221,8 +228,8 @@ class Mark(Intercept):
     def init_carry(self, players_per_team: int) -> MarkMemory:
         n = players_per_team
         return MarkMemory(
-            NaiveMemory.empty(n), np.zeros((n, 2)), np.full(n, 1 << 20, np.int64),
-            np.full(n, -1, np.int64), np.zeros(n),
+            NaiveMemory.empty(n), np.zeros(n), np.zeros((n, 2)),
+            np.full(n, NEVER_SEEN, np.int64), np.full(n, -1, np.int64),
         )
 
     def act(self, params, carry, obs, key=None):
@@ -230,7 +237,7 @@ class Mark(Intercept):
         position, heading = _pose(self, obs)
         n = len(position)
         opponents, age = self._sight_opponents(obs, position, heading, carry)
-        carry = MarkMemory(naive_carry, opponents, age, np.full(n, -1, np.int64), carry.speed)
+        carry = MarkMemory(naive_carry, carry.speed, opponents, age, np.full(n, -1, np.int64))
         if naive_carry.age.min() > self.memory_steps:
             return carry, out  # nobody knows where the ball is: the naive search
         ball = naive_carry.ball.mean(axis=0)
@@ -279,7 +286,7 @@ class Mark(Intercept):
             _steer(self, out, turned, carry.speed, i, target, ball, position, heading)
         speed = _next_speed(out, carry.speed)
         carry = MarkMemory(
-            dataclasses.replace(naive_carry, turned=turned), opponents, age, marking, speed
+            dataclasses.replace(naive_carry, turned=turned), speed, opponents, age, marking
         )
         return carry, out
 
@@ -288,7 +295,7 @@ class Mark(Intercept):
         entities = np.asarray(obs.entities, np.float64)
         mask = np.asarray(obs.entity_mask)
         n = len(position)
-        opponents, age = carry.opponents.copy(), np.minimum(carry.age + 1, 1 << 20)
+        opponents, age = carry.opponents.copy(), np.minimum(carry.age + 1, NEVER_SEEN)
         nearest = np.full(n, np.inf)
         for i in range(n):
             for j in range(n):

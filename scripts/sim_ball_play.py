@@ -21,7 +21,7 @@ import json
 import jax
 import numpy as np
 
-from elevens.env.rcss import DEFAULT, RcssSoccer
+from elevens.robocup.bodies import DEFAULT, RcssSoccer
 from elevens.eval.match import play_match
 from elevens.runs.teams import fit_to_field, load_team
 

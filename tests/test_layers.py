@@ -1,5 +1,6 @@
-"""The packages import in one direction (DESIGN.md):
-env -> {teams, nets} -> play -> train -> eval -> runs -> {robocup, adapters, bench} -> cli.
+"""The packages import in one direction (docs/architecture.md):
+env -> {teams, nets} -> play -> train -> eval -> runs -> {robocup, adapters, bench} -> cli,
+and the core below the RoboCup wing does not even name the official server.
 
 Read from the source with ``ast``: every ``import`` and ``from ... import`` counts, those
 inside functions (lazy imports) included, so a lower layer cannot reach up even on first use.
@@ -8,6 +9,7 @@ inside functions (lazy imports) included, so a lower layer cannot reach up even 
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
@@ -98,6 +100,38 @@ def test_the_check_sees_a_lazy_upward_import(
     monkeypatch.setitem(globals(), "SOURCE", root)
     edges = upward_edges()
     assert len(edges) == 1 and "env/bad.py:2 imports elevens.train.learner" in edges[0]
+
+
+CORE = ("env", "teams", "nets", "play.py", "train", "eval", "runs")
+"""The simulator-and-learner core: it takes its game (``EnvConfig.make_env``) and knows nothing of
+the official server; the RoboCup wing supplies its games, teams and server runs from above."""
+SERVER_WORDS = re.compile(r"rcss|robocup", re.IGNORECASE)
+
+
+def server_words(root: Path) -> list[str]:
+    """'path:line: text' of every line of a core file (code, docstrings, comments, model
+    cards) that names the server or the wing."""
+    found = []
+    for part in CORE:
+        base = root / part
+        for path in sorted([base] if base.is_file() else base.rglob("*")):
+            if not path.is_file() or path.suffix not in (".py", ".md", ".json", ".txt"):
+                continue
+            for number, text in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
+                if SERVER_WORDS.search(text):
+                    found.append(f"{path.relative_to(root)}:{number}: {text.strip()}")
+    return found
+
+
+def test_the_core_never_names_the_server() -> None:
+    found = server_words(SOURCE)
+    assert not found, "the core names the official server or its wing:\n" + "\n".join(found)
+
+
+def test_the_word_check_sees_a_comment(tmp_path: Path) -> None:
+    (tmp_path / "train").mkdir()
+    (tmp_path / "train" / "x.py").write_text("x = 1\n# as RCSSServer does\n")
+    assert server_words(tmp_path) == ["train/x.py:2: # as RCSSServer does"]
 
 
 READ_TOP_TO_BOTTOM = ("train", "runs")

@@ -7,6 +7,7 @@ import dataclasses
 import json
 import time
 from pathlib import Path
+from typing import ClassVar
 
 import pytest
 
@@ -446,32 +447,66 @@ def test_the_action_count_is_2_or_12_and_training_takes_2() -> None:
         assert TrainConfig.from_saved(saved, "x.json").learner.network.actions == 2
 
 
-def test_rcss_physics_takes_the_12_value_action_and_its_own_handcrafted_team() -> None:
-    from elevens.train.config import make_config
+def test_the_learner_takes_the_game_its_config_makes(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The core knows one game; another registers its EnvConfig subclass, whose make_env and
+    actions the learner takes, and a saved config of it reads back as that class."""
+    from elevens.train import config as config_module
+    from elevens.train.config import EnvConfig, apply_overrides, make_config
     from elevens.train.learner import make_learner
 
-    with pytest.raises(ValueError, match=r"env.physics='newton' is invalid: allowed values are"):
-        make_config("quickstart", **{"env.physics": "newton"})
-    two = make_config("quickstart", **{"env.physics": "rcss", "run.eval_teams": (),
-                                       "run.write_gif": False})
-    with pytest.raises(ValueError, match="env.physics='rcss' takes the thesis's 12-value"):
-        make_learner(two.learner)
+    @dataclasses.dataclass(frozen=True)
+    class WideGame(EnvConfig):
+        physics: str = "wide"
+        width: int = 3
+        PHYSICS: ClassVar[str] = "wide"
+
+        @property
+        def actions(self) -> int:
+            return 12
+
+    base = make_config("quickstart", **{"run.eval_teams": (), "run.write_gif": False})
+    fields = {f.name: getattr(base.learner.env, f.name) for f in dataclasses.fields(EnvConfig)}
+    wide = dataclasses.replace(base, learner=dataclasses.replace(
+        base.learner, env=WideGame(**{**fields, "physics": "wide"})))
+    with pytest.raises(ValueError, match=r"env.physics='wide' is invalid here: .* known to this "
+                       r"process are thesis"):
+        wide.validate()
+    monkeypatch.setitem(config_module.GAMES, "wide", WideGame)
+    wide.validate()
+    with pytest.raises(ValueError, match=r"network.actions=2: the game env.physics='wide' takes "
+                       r"12 action values"):
+        make_learner(wide.learner)
+    wide12 = apply_overrides(wide, {"network.actions": 12, "env.width": 5})
+    assert TrainConfig.from_json(wide12.to_json()) == wide12
+    assert type(TrainConfig.from_json(wide12.to_json()).learner.env) is WideGame
+    with pytest.raises(ValueError, match=r"run.write_gif=True is invalid with env.physics='wide'"):
+        apply_overrides(wide12, {"run.write_gif": True}).validate()
     with pytest.raises(ValueError, match=r"run.eval_teams team 'naive' gives 2 action values"):
-        make_config("quickstart", **{"env.physics": "rcss", "network.actions": 12,
-                                     "run.eval_teams": ("naive",), "run.write_gif": False})
-    make_config("quickstart", **{"env.physics": "rcss", "network.actions": 12,
-                                 "run.eval_teams": ("rcss_naive",), "run.write_gif": False})
-    with pytest.raises(ValueError, match="run.write_gif=True is invalid with env.physics"):
-        make_config("quickstart", **{"env.physics": "rcss", "network.actions": 12,
-                                     "run.eval_teams": ()})
-    # A config saved before the field existed reads as the simulator's game, silently.
-    saved = make_config("quickstart").to_dict()
-    del saved["learner"]["env"]["physics"]
-    del saved["learner"]["env"]["see_period"]
-    del saved["learner"]["env"]["stamina"]
-    del saved["learner"]["env"]["goalie"]
+        apply_overrides(wide12, {"run.eval_teams": ("naive",)}).validate()
+    with pytest.raises(ValueError, match="env.physics='wide' is invalid here: this config's game"):
+        make_config("quickstart", **{"env.physics": "wide"})
+    monkeypatch.delitem(config_module.GAMES, "wide")
+    with pytest.raises(ValueError, match=r"physics='wide' names a game this process does not "
+                       r"know: known are thesis"):
+        TrainConfig.from_json(wide12.to_json())
+
+
+def test_a_version_2_config_of_the_simulators_game_reads_silently() -> None:
+    """Version 2 wrote another game's fields (at their defaults) for every game; the simulator's
+    game drops them, and refuses them at any other value."""
     import warnings
 
+    from elevens.train.config import make_config
+
+    saved = make_config("quickstart").to_dict()
+    saved["learner"]["env"].update(see_period=1, stamina=False, goalie=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert TrainConfig.from_saved(saved, "x.json") == make_config("quickstart")
+    del saved["learner"]["env"]["physics"]
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert TrainConfig.from_saved(saved, "x.json").learner.env.physics == "thesis"
+    saved["learner"]["env"]["stamina"] = True
+    with pytest.raises(ValueError, match=r"unknown keys \['stamina'\]"):
+        TrainConfig.from_saved(saved, "x.json")

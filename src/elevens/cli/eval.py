@@ -25,6 +25,7 @@ from typing import Annotated, Any
 
 import tyro
 
+import elevens.robocup  # noqa: F401 - registers the RoboCup wing's games, teams and shipped teams
 from elevens.cli.checks import Commands, run_command, subcommand_union
 
 
@@ -181,7 +182,7 @@ def _teams_and_env(
     (SPEC.md's when all are handcrafted), with the handcrafted teams told that field. With
     ``see_period`` (the tournament) teams that all give the 12-value action play the simulator
     with rcssserver's bodies (its field unless the checkpoints trained on another)."""
-    from elevens.env.rcss import RcssSoccer
+    from elevens.robocup.bodies import RcssSoccer
     from elevens.runs.teams import check_team_size, common_field, fit_to_field
 
     loaded = [_load_teams(group, deterministic) for group in groups]

@@ -20,8 +20,9 @@ from typing import TYPE_CHECKING, Annotated, Any, Union
 
 import tyro
 
+import elevens.robocup  # noqa: F401 - registers the games of the RoboCup wing and their presets
 from elevens.cli.checks import EXIT_INTERRUPTED, exit_with_error
-from elevens.train.config import PRESETS, TrainConfig, make_config
+from elevens.train.config import PRESET_DESCRIPTIONS, PRESETS, TrainConfig, make_config
 
 _PRESET_HELP = {
     "quickstart": "1 v 1 on a small field, 100-step episodes: learns to beat the random team "
@@ -41,7 +42,8 @@ else:
             Annotated[
                 TrainConfig,
                 tyro.conf.subcommand(
-                    name, default=make_config(name), description=_PRESET_HELP[name],
+                    name, default=make_config(name),
+                    description=_PRESET_HELP.get(name) or PRESET_DESCRIPTIONS[name],
                     prefix_name=False,
                 ),
             ]

@@ -144,8 +144,8 @@ class EnvParams:
     possession_shaping_weight: float = 0.0
     """w_p: weight of having the ball, each step: +w_p to every player of the team that has it
     (``possession_by``), -w_p to the other team's. Not in the thesis (0: off). By nearness a
-    team that crowds the ball wins it without controlling it (docs/results/robocup.md,
-    session 20). The shaping schedule switches it off with the rest."""
+    team that crowds the ball wins it without controlling it. The shaping schedule switches
+    it off with the rest."""
     possession_radius: float = 2.0
     """With ``possession_by`` "near": a team has the ball when its nearest player is this near
     it and nearer than every opponent (metres)."""

@@ -62,11 +62,11 @@ class State:
     score: jax.Array  # i32[2] goals of team 0 and team 1 this episode
     step: jax.Array  # i32[] steps taken this episode
     held_observation: Any = None
-    """The observation the players act on when they do not see every step (RcssSoccer with
-    ``see_period`` > 1: each player's last see); None where observations are fresh."""
+    """The observation the players act on in a game where they do not see every step (each
+    player's last see); None where observations are fresh."""
     stamina: Any = None
-    """Each player's stamina (``elevens.env.rcss.Stamina``) in RcssSoccer with ``stamina``;
-    None where players never tire."""
+    """Each player's stamina, in a game whose players tire (a pytree of that game's); None
+    where players never tire."""
     last_touch: Any = None
     """i32[]: the team whose player touched the ball last since the kick-off (0 or 1), -1 for
     nobody (or both at once). Every reset sets it; a State built by hand may leave it None,

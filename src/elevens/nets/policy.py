@@ -223,8 +223,8 @@ class AttentionPolicy(nn.Module):
     activation: Activation = nn.relu
     """Non-linearity of the feedforward blocks."""
     num_actions: int = NUM_ACTIONS
-    """Action values: 2, the simulator's (move, rot); 12, the thesis's RoboCup action
-    (elevens.robocup.actions), for teams that play rcssserver only."""
+    """Action values: 2, the simulator's (move, rot); 12, the thesis's 12-value action of
+    table 4.1 (for games above the core that take it)."""
 
     def setup(self) -> None:
         self.encode_ff = FF2(self.features, activation=self.activation)

@@ -10,6 +10,10 @@
 * :mod:`elevens.robocup.observe` / :mod:`elevens.robocup.env` -- :class:`RoboCupEnv`, the
   simulator's reset/step contract and containers on top of the server.
 * :mod:`elevens.robocup.naive` -- the RoboCup naive team of thesis section 6.7.
+* :mod:`elevens.robocup.bodies` / :mod:`elevens.robocup.sim` /
+  :mod:`elevens.robocup.rcss_naive` -- the simulator with rcssserver's bodies and the 12-value
+  action, a game to train in (``elevens train rcss-11v11``) with its handcrafted team; importing
+  this package registers them with the core.
 * :mod:`elevens.robocup.train` / :mod:`elevens.robocup.play` -- PPO training and matches in the
   server (``elevens robocup ...``).
 """
@@ -101,3 +105,7 @@ __all__ = [
     "parse_message",
     "parse_sexp",
 ]
+
+from elevens.robocup.sim import register as _register_sim_game  # noqa: E402
+
+_register_sim_game()

@@ -42,8 +42,8 @@ import optax
 
 from elevens.env import observe as observe_lib
 from elevens.env.params import EnvParams
-from elevens.env.rcss import EVERY_CYCLE_FEATURES
 from elevens.env.state import ENTITY_FEATURES, SELF_FEATURES, Observation, State
+from elevens.robocup.bodies import EVERY_CYCLE_FEATURES
 from elevens.robocup.observe import PLAYER_DECAY
 from elevens.robocup.rules import kick_off_positions
 

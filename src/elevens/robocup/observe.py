@@ -34,8 +34,6 @@ from typing import Any, Protocol
 import numpy as np
 
 from elevens.env.params import EnvParams
-from elevens.env.rcss import DEFAULT as RCSS_BODY
-from elevens.env.rcss import kick_rate_factor
 from elevens.env.state import (
     ENTITY_FEATURES,
     NUM_ENTITY_FEATURES,
@@ -44,6 +42,8 @@ from elevens.env.state import (
     Observation,
     State,
 )
+from elevens.robocup.bodies import DEFAULT as RCSS_BODY
+from elevens.robocup.bodies import kick_rate_factor
 from elevens.robocup.localize import localize
 from elevens.robocup.protocol import GlobalView, Kick, SeeMessage, SeenObject, SenseBody, Turn
 
@@ -506,7 +506,7 @@ class PerceptMemory:
     def _kick(
         self, team: int, i: int, kick: Kick, position: np.ndarray, heading: float
     ) -> None:
-        """rcssserver's kick (``elevens.env.rcss.kick_acceleration``) on the ball estimate."""
+        """rcssserver's kick (``elevens.robocup.bodies.kick_acceleration``) on the ball estimate."""
         body = RCSS_BODY
         offset = self.ball[team, i] - position
         gap = math.hypot(*offset) - body.player_size - body.ball_size

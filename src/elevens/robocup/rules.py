@@ -38,14 +38,14 @@ from typing import Any
 import numpy as np
 
 from elevens.env.params import formation
-from elevens.env.rcss import (
+from elevens.robocup.bodies import (
     GUARD_DEPTH,
     GUARD_FACE_BALL,
     GUARD_SLACK,
     HALF_CYCLES,
     STAMINA_RESERVE,
 )
-from elevens.env.rcss import PENALTY_AREA as RCSS_PENALTY_AREA
+from elevens.robocup.bodies import PENALTY_AREA as RCSS_PENALTY_AREA
 from elevens.robocup.observe import FIELD_LENGTH, FIELD_WIDTH, PerceptMemory
 from elevens.robocup.protocol import Catch, Command, Dash, Kick, Move, Turn
 
@@ -100,7 +100,7 @@ FAULTS = (
 # STAMINA_RESERVE: stamina a player keeps for itself (server::stamina_max 8000; below
 # effort_dec_thr x max = 2400 its effort falls for good); above it a player dashes as the policy
 # asks. HALF_CYCLES: each half restores the capacity. Shared with the simulator's copy of this
-# rule (elevens.env.rcss.paced_power).
+# rule (elevens.robocup.bodies.paced_power).
 RECOVERING_DASH = 30.0
 """The dash power at or below the reserve when the stamina capacity is unknown: less than the
 stamina a player recovers a cycle (server::stamina_inc_max 45), so it walks while its stamina

@@ -115,9 +115,12 @@ SERVER_GAME_FIELDS = (
 )
 
 
+ROBOCUP_CONFIG_JSON = "robocup_config.json"
+"""The run directory's file with the whole ``RoboCupTrainConfig`` (beside config.json)."""
+
 # The EnvConfig fields that only the simulator's game reads (EnvConfig.game and the shaping
 # schedule's are honoured); robocup train refuses them rather than ignore them.
-SERVER_ENV_FIELDS = ("mix", "mix_shares", "physics", "stamina", "goalie", "see_period")
+SERVER_ENV_FIELDS = ("mix", "mix_shares", "physics")
 
 
 def _robocup_learner() -> LearnerConfig:
@@ -517,7 +520,7 @@ def train_robocup(
         raise
     layout.root.mkdir(parents=True, exist_ok=True)
     layout.config.write_text(config.train_config().to_json(), encoding="utf-8")
-    layout.robocup_config.write_text(
+    (layout.root / ROBOCUP_CONFIG_JSON).write_text(
         json.dumps(dataclasses.asdict(config), indent=2), encoding="utf-8"
     )
     loop = _RoboCupLoop(config, layout, checkpointer, learner, state, resumed, print_fn, began)
@@ -744,7 +747,7 @@ def _open_robocup_run(
         _, source_params = load_start_params(config.run.init_from, train_config)
     for team in config.run.eval_teams:  # a bad spec fails here, before anything compiles
         evaluation_team(team, config.learner.env.game)
-    learner = make_learner(config.learner, devices=1, plays_rcssserver=True)
+    learner = make_learner(config.learner, devices=1, external_games=True)
     state = learner.init(jax.random.key(config.run.seed), source_params)
     if latest is not None:
         state, _, _ = checkpointer.restore(state)

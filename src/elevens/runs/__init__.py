@@ -2,7 +2,8 @@
 drives the compiled learner (``train``), loading trained teams from runs and shipped folders,
 and reading learning curves back.
 
-Layers: env -> {teams, nets} -> play -> train -> eval -> runs -> {robocup, adapters, bench} -> cli.
+Layers: env -> {teams, nets} -> play -> train -> eval -> runs -> the wings and fronts above (the
+official server's bridge, adapters, bench) -> cli; docs/architecture.md draws them.
 """
 
 from __future__ import annotations

@@ -11,8 +11,9 @@
       events.out.tfevents.*    TensorBoard
       learning_curve.png       evaluation outcome against each team, by env steps and hours
       learner_vs_naive.gif     one game of the final learner
-      robocup_config.json      elevens robocup train: its whole RoboCupTrainConfig
-      episodes.csv             elevens robocup train: one row per server game
+      episodes.csv             runs whose games are played outside the simulator: one row a game
+
+A run of a wing above the core may write files of its own beside these (its whole config).
 """
 
 from __future__ import annotations
@@ -26,7 +27,6 @@ CONFIG_JSON = "config.json"
 METRICS_CSV = "metrics.csv"
 LEARNING_CURVE = "learning_curve.png"
 GIF_NAME = "learner_vs_naive.gif"
-ROBOCUP_CONFIG_JSON = "robocup_config.json"
 EPISODES_CSV = "episodes.csv"
 
 
@@ -63,10 +63,6 @@ class RunLayout:
     @property
     def gif(self) -> Path:
         return self.root / GIF_NAME
-
-    @property
-    def robocup_config(self) -> Path:
-        return self.root / ROBOCUP_CONFIG_JSON
 
     @property
     def episodes_csv(self) -> Path:

@@ -57,8 +57,8 @@ def load_start_params(text: str, config: TrainConfig) -> tuple[TrainConfig, Lear
 def check_resumable(checkpointer: Any, config: TrainConfig, step: int | None = None) -> None:
     """Raise ``RunRefusedError`` unless the checkpoint's config (``step``, default the latest)
     matches ``config`` (outside ``RESUMABLE_FIELDS``), listing every difference. Reads only
-    config.json, so it runs before anything compiles (``train`` and ``elevens robocup train``
-    call it on a resume)."""
+    config.json, so it runs before anything compiles (every run
+    calls it on a resume)."""
     try:
         saved = TrainConfig.from_saved(
             checkpointer.read_config(step), f"the config.json in {checkpointer.directory}"

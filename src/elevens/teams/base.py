@@ -60,24 +60,22 @@ class Team:
 
     actions: int = 2
     """Action values its policy gives: 2, the simulator's (move, rot); 12, the thesis's
-    RoboCup action (it plays rcssserver, or the simulator with its bodies: env.physics rcss)."""
+    12-value action (a game above the core that takes it)."""
 
     def check_size(self, players_per_team: int, actions: int = 2) -> None:
         """Raise ``ValueError`` unless the team can play ``players_per_team`` a side in a game
-        that takes ``actions`` action values: 2, the simulator's game; 12, the simulator with
-        rcssserver's bodies (``env.physics rcss``)."""
+        that takes ``actions`` action values (2: the simulator's own game)."""
         if self.actions != actions:
             if actions == 2:
                 raise ValueError(
                     f"team {self.name!r} ({self.spec}) gives the thesis's {self.actions}-value "
-                    "RoboCup action, not the simulator's (move, rot): it plays the simulator "
-                    "with rcssserver's bodies (env.physics rcss), and a trained one rcssserver "
-                    "(elevens robocup match)"
+                    "action, not the simulator's (move, rot): it plays the game it was made "
+                    "for (a game above the core, e.g. the server's bodies), not this one"
                 )
             raise ValueError(
                 f"team {self.name!r} ({self.spec}) gives {self.actions} action values; this "
-                f"game takes {actions} (the thesis's RoboCup action: a team trained with "
-                "env.physics rcss or network.actions 12, or the handcrafted rcss_naive)"
+                f"game takes {actions}: use a team trained in it (network.actions {actions}) "
+                "or one of its handcrafted teams"
             )
         if self.size_dependent and self.trained_players != players_per_team:
             raise ValueError(

@@ -3,25 +3,28 @@
 from __future__ import annotations
 
 import dataclasses
+import typing
 
 from elevens.env import EnvParams
 from elevens.teams.base import TeamPolicy
-from elevens.teams.rcss_naive import RcssNaiveTeam
-from elevens.teams.rcss_passer import RcssPasserTeam
 from elevens.teams.scripted import Field, NaiveTeam, RandomTeam, TeamworkTeam
 
 HANDCRAFTED: dict[str, TeamPolicy] = {
     "random": RandomTeam(),
     "naive": NaiveTeam(),
     "teamwork": TeamworkTeam(),
-    "rcss_naive": RcssNaiveTeam(),
-    "rcss_passer": RcssPasserTeam(),
 }
 
 
+def register_team(name: str, team: TeamPolicy) -> None:
+    """Make a handcrafted team of a game above the core known by name (``resolve_team``); a
+    team with an ``on_field(Field)`` method is told the field it plays on by that method."""
+    HANDCRAFTED[name] = team
+
+
 def action_size(team: TeamPolicy) -> int:
-    """Action values a handcrafted team gives: 2, the simulator's (move, rot); 12, the thesis's
-    RoboCup action (``rcss_naive``, for ``env.physics rcss``)."""
+    """Action values a handcrafted team gives: 2, the simulator's (move, rot), or its
+    ``actions`` (a registered team of another game)."""
     return int(getattr(team, "actions", 2))
 
 
@@ -46,8 +49,9 @@ def resolve_team(name: str, params: EnvParams | None = None) -> TeamPolicy:
     if params is None:
         return team
     field = Field.of(params)
-    if isinstance(team, RcssNaiveTeam | RcssPasserTeam):  # rcssserver's field by default
-        return dataclasses.replace(team, field=field)
+    on_field = getattr(team, "on_field", None)
+    if on_field is not None:  # a registered team that knows its own default field
+        return typing.cast(TeamPolicy, on_field(field))
     if field == Field():
         return team
     if isinstance(team, NaiveTeam):

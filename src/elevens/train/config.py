@@ -32,13 +32,14 @@ import math
 import re
 import typing
 import warnings
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, ClassVar
 
 import tyro
 
 from elevens.env.params import MAX_PLAYERS_PER_TEAM, EnvParams
+from elevens.env.soccer import Soccer
 from elevens.train.opponents import (
     LEAGUE_EVERY,
     LEAGUE_MIN_GAMES,
@@ -97,28 +98,33 @@ class EnvConfig:
     """The share of the iterations of each game of ``mix``, in its order; the main game has the
     rest. E.g. ``mix=('2v2',), mix_shares=(0.5,)``: every other chunk is 2 v 2."""
     physics: str = "thesis"
-    """"thesis": the simulator's game (``elevens.env.soccer``, the 2-value (move, rot) action).
-    "rcss": rcssserver's bodies and the thesis's 12-value RoboCup action
-    (``elevens.env.rcss.RcssSoccer``; with ``network.actions 12``), so the trained team plays
-    ``elevens robocup match`` as it trained. Give it the server's field and ball as well
-    (``--env.field-length 105 --env.field-width 68 --env.goal-width 14.02
-    --env.ball-friction 0.94 --env.ball-max-speed 3``). Its handcrafted team is
-    ``rcss_naive`` (for ``run.eval_teams`` and ``opponent.mix``); the simulator's own
-    handcrafted teams give the 2-value action and cannot play it."""
-    stamina: bool = False
-    """With physics "rcss": players tire as in rcssserver (stamina, effort, recovery and
-    capacity; ``elevens.env.rcss.Stamina``) and pace their dashes by the rule every elevens
-    team plays the server with (``elevens.robocup.rules.pace_dashes``)."""
-    goalie: bool = False
-    """With physics "rcss": each team's goalie (player 0) plays as the elevens routines play
-    it in rcssserver instead of by the policy: it guards its goal, catches a ball in reach
-    inside its penalty area and clears it up the wing (``elevens.env.rcss.goalie_guard``,
-    ``goalie_catch``)."""
-    see_period: int = 1
-    """With physics "rcss": cycles between two sees of a player. 1: a fresh observation every
-    step; 3: rcssserver's wide view in synch mode, as ``elevens robocup`` plays (each player
-    acts on its last see, with its clock and last command current; the critic sees the
-    state)."""
+    """The game's bodies and action: "thesis", the simulator's own game (``elevens.env.soccer``,
+    the 2-value (move, rot) action). Other names belong to games registered by a package above
+    the core (``register_game``), each with its own ``EnvConfig`` subclass; a config of one is
+    made from its preset (``elevens train --help`` lists them), and a saved one reads back as
+    its class."""
+
+    PHYSICS: ClassVar[str] = "thesis"
+    """The ``physics`` this class plays (a subclass names its own)."""
+
+    def make_env(self, players_per_team: int) -> Soccer:
+        """The game a learner trains in, ``players_per_team`` a side (pure reset and step)."""
+        return Soccer(players_per_team)
+
+    @property
+    def actions(self) -> int:
+        """Action values a player gives in this game: 2, the simulator's (move, rot)."""
+        return 2
+
+    @property
+    def scripted_players(self) -> tuple[int, ...]:
+        """Players (indices within a team) a routine of the game plays instead of the policy:
+        their sampled actions are never played, so they leave PPO's policy terms."""
+        return ()
+
+    def check(self) -> None:
+        """The checks of this game's own fields (the subclasses' extra ones); raises
+        ``ValueError`` naming the first bad one."""
 
     @property
     def players_per_team(self) -> int:
@@ -130,6 +136,22 @@ class EnvConfig:
         """The main game as 'NvN' (the form of ``mix``)."""
         return f"{self.players_per_team}v{self.players_per_team}"
 
+
+GAMES: dict[str, type[EnvConfig]] = {EnvConfig.PHYSICS: EnvConfig}
+"""The games a learner can train in, by ``env.physics``: the simulator's own, and those a
+package above the core registers (``register_game``)."""
+
+
+def register_game(env_config: type[EnvConfig]) -> None:
+    """Make a game known by its ``EnvConfig`` subclass's ``PHYSICS``: configs of it validate,
+    and saved ones read back as that class."""
+    GAMES[env_config.PHYSICS] = env_config
+
+
+# Version 2 wrote these fields of another game's EnvConfig for every game; in the simulator's
+# own game they held their defaults (any other value was refused) and are dropped on reading.
+_OTHER_GAMES_FIELDS = {"stamina": False, "goalie": False, "see_period": 1}
+
 NETWORK_ACTIONS = (2, 12)
 # Fields added after config version 2 whose default is all that older versions knew: filled
 # without a warning.
@@ -138,7 +160,6 @@ _SILENT_DEFAULTS = (
     "learner.env.stamina", "learner.env.goalie", "learner.env.game.possession_shaping_weight",
     "learner.env.game.possession_radius", "learner.env.game.possession_by",
 )
-PHYSICS = ("thesis", "rcss")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -158,9 +179,9 @@ class NetworkConfig:
     lstm_layers: int = 2
     """LSTM layers in out_r (table 6.2: 2)."""
     actions: int = 2
-    """Policy outputs: 2, the simulator's (move, rot), what every simulator game and training
-    run takes; 12, the thesis's RoboCup action (table 4.1), for teams that play rcssserver
-    only (``elevens robocup imitate --action thesis12``)."""
+    """Policy outputs: 2, the simulator's (move, rot); 12, the thesis's 12-value action (table
+    4.1), for a game that takes it (``EnvConfig.actions``) or one played outside the
+    simulator."""
 
     def policy(self) -> Any:
         """The ``AttentionPolicy`` module of this config."""
@@ -579,7 +600,17 @@ PRESETS = {
     "11v11": _eleven_v_eleven,
 }
 """Named starting points: a few-minute CPU demo, the thesis' 4-player and 22-player settings,
-and the 4-player setting with batches for one GPU."""
+and the 4-player setting with batches for one GPU; games registered above the core add their
+own (``register_preset``)."""
+
+PRESET_DESCRIPTIONS: dict[str, str] = {}
+"""What each preset registered with ``register_preset`` is (the CLI's help)."""
+
+
+def register_preset(name: str, make: Callable[[], TrainConfig], description: str) -> None:
+    """Add the preset ``name`` (``make`` builds its config) for ``make_config`` and the CLI."""
+    PRESETS[name] = make
+    PRESET_DESCRIPTIONS[name] = description
 
 
 def make_config(preset: str = "quickstart", **overrides: Any) -> TrainConfig:
@@ -637,7 +668,7 @@ def config_paths(config: Any) -> dict[str, str]:
 
 def apply_overrides(config: _Config, overrides: Mapping[str, Any]) -> _Config:
     """``config`` (a ``TrainConfig``, or one that holds a ``learner`` the same way, e.g.
-    ``RoboCupTrainConfig``) with fields replaced by short name (see ``make_config``); not
+    a wing's run config) with fields replaced by short name (see ``make_config``); not
     validated beyond what each group checks on construction (EnvParams and PPOHyperparams
     do)."""
     paths = config_paths(config)
@@ -752,27 +783,25 @@ def validate(config: TrainConfig) -> None:
     )
     _validate_run(config.run)
     validate_learner(config.learner)
-    if config.learner.env.physics == "rcss":
+    if config.learner.env.actions != 2:
         # The GIF plays the simulator's handcrafted teams, whose players give 2-value actions.
         _require(
             not config.run.write_gif,
-            "run.write_gif=True is invalid with env.physics='rcss': the GIF's game is against "
-            "the simulator's handcrafted teams, which give the 2-value action; leave it out "
-            "(--run.no-write-gif)",
+            f"run.write_gif=True is invalid with env.physics={config.learner.env.physics!r}: "
+            "the GIF's game is against the simulator's handcrafted teams, which give the "
+            "2-value action; leave it out (--run.no-write-gif)",
         )
     _check_team_actions("run.eval_teams", config.run.eval_teams, config.learner)
 
 
 def game_actions(learner: LearnerConfig) -> int:
-    """Action values the simulator's game of ``learner`` takes from a team: 2, (move, rot);
-    12 with env.physics rcss, the thesis's RoboCup action."""
-    return 12 if learner.env.physics == "rcss" else 2
+    """Action values the game of ``learner`` takes from a team (``EnvConfig.actions``)."""
+    return learner.env.actions
 
 
 def _check_team_actions(flag: str, specs: Any, learner: LearnerConfig) -> None:
-    """Handcrafted teams among ``specs`` must give the action the game takes: the simulator's
-    2-value one, or with env.physics rcss the 12-value one (rcss_naive). Trained teams are
-    checked when they load."""
+    """Handcrafted teams among ``specs`` must give the action the game takes (the simulator's
+    2-value one, or another game's). Trained teams are checked when they load."""
     from elevens.teams.registry import HANDCRAFTED, action_size, handcrafted_for
 
     actions = game_actions(learner)
@@ -812,35 +841,12 @@ def _validate_env(env: EnvConfig) -> None:
     _int_at_least("env.shaping_window", env.shaping_window, 1)
     _in_unit_interval("env.shaping_threshold", env.shaping_threshold)
     _require(
-        env.physics in PHYSICS,
-        f"env.physics={env.physics!r} is invalid: allowed values are {PHYSICS}",
+        env.physics == type(env).PHYSICS and env.physics in GAMES,
+        f"env.physics={env.physics!r} is invalid here: this config's game is "
+        f"{type(env).PHYSICS!r}; a game is chosen by its preset (elevens train --help), and the "
+        f"games known to this process are {', '.join(sorted(GAMES))}",
     )
-    _require(
-        isinstance(env.see_period, int) and env.see_period >= 1,
-        f"env.see_period={env.see_period!r} is invalid: cycles between two sees, an integer "
-        "of at least 1",
-    )
-    _require(
-        not env.goalie or env.physics == "rcss",
-        f"env.goalie=True is invalid with env.physics={env.physics!r}: the simulator's own "
-        "keeper has no hands; the goalie's routine is rcssserver's (env.physics rcss)",
-    )
-    _require(
-        not env.goalie or env.game.players_per_team > 1,
-        "env.goalie=True is invalid with 1 player a side: the routine plays each team's "
-        "goalie (player 0), so the policy would play nobody; use 2 or more players",
-    )
-    _require(
-        not env.stamina or env.physics == "rcss",
-        f"env.stamina=True is invalid with env.physics={env.physics!r}: the simulator's own "
-        "players never tire; stamina is rcssserver's (env.physics rcss)",
-    )
-    _require(
-        env.see_period == 1 or env.physics == "rcss",
-        f"env.see_period={env.see_period!r} is invalid with env.physics={env.physics!r}: the "
-        "simulator's own game observes every step; see periods are rcssserver's (env.physics "
-        "rcss)",
-    )
+    env.check()
 
 
 def _players_of(scenario: str) -> int:
@@ -862,11 +868,6 @@ def _validate_mix(learner: LearnerConfig) -> None:
             and match.group(1) == match.group(2)
             and 1 <= int(match.group(1)) <= MAX_PLAYERS_PER_TEAM,
             f"env.mix: {_scenario_error(scenario)}",
-        )
-        _require(
-            not env.goalie or scenario != "1v1",
-            "env.mix=('1v1', ...) is invalid with env.goalie=True: the routine plays each "
-            "team's goalie (player 0), so the policy would play nobody in 1 v 1",
         )
     if not env.mix and not env.mix_shares:
         return
@@ -963,7 +964,7 @@ def _validate_network(network: NetworkConfig) -> None:
     _require(
         network.actions in NETWORK_ACTIONS,
         f"network.actions={network.actions!r} is invalid: it must be 2 (move, rot) or 12 (the "
-        "thesis's RoboCup action)",
+        "thesis's 12-value action of table 4.1)",
     )
     _require(
         network.features % network.num_heads == 0,
@@ -1126,8 +1127,11 @@ def _from_dict(
     are left to them, and their paths appended to it."""
     if not isinstance(data, Mapping):
         raise ValueError(f"config{where}: expected an object, got {type(data).__name__}")
+    if isinstance(cls, type) and issubclass(cls, EnvConfig):
+        game, data = _game_class(data, where)
+        cls = game
     hints = typing.get_type_hints(cls)
-    fields = {f.name: f for f in dataclasses.fields(cls)}
+    fields = {f.name: f for f in dataclasses.fields(typing.cast(Any, cls))}
     names = list(fields)
     unknown = sorted(set(data) - set(names))
     missing = [name for name in names if name not in data]
@@ -1157,6 +1161,24 @@ def _from_dict(
         else:
             values[name] = value
     return cls(**values)
+
+
+def _game_class(data: Mapping[str, Any], where: str) -> tuple[type[EnvConfig], Mapping[str, Any]]:
+    """The registered EnvConfig class of a saved env group (by its ``physics``), and the group
+    without the fields version 2 kept for other games."""
+    physics = data.get("physics", EnvConfig.PHYSICS)
+    if physics not in GAMES:
+        raise ValueError(
+            f"config{where}.physics={physics!r} names a game this process does not know: "
+            f"known are {', '.join(sorted(GAMES))} (a game's package registers it on import)"
+        )
+    cls = GAMES[physics]
+    own = {f.name for f in dataclasses.fields(cls)}
+    data = {
+        key: value for key, value in data.items()
+        if key in own or _OTHER_GAMES_FIELDS.get(key, object()) != value
+    }
+    return cls, data
 
 
 def _has_default(field: dataclasses.Field[Any]) -> bool:

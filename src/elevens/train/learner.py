@@ -18,9 +18,12 @@ One iteration (thesis Algorithm 4) compiles into one program, and this file read
 5. **Shaping** (``elevens.train.shaping``): off for good once the learner scores in more than
    75% of its recent games.
 
-``improve`` is steps 2 to 5 on a rollout played anywhere: ``elevens robocup train`` plays its
-games in the official server and improves with the same function. ``update_chunk`` runs K
-iterations as a ``lax.scan``; the host loop that drives it is ``elevens.runs``.
+``improve`` is steps 2 to 5 on a rollout played anywhere: a run whose games are played outside
+XLA (an external server, through ``elevens.runs.loop``'s collect seam) improves with the same
+function. The game itself comes from the config: ``config.env.make_env`` (the simulator's own
+game, or one a package above the core registers with ``train.config.register_game``).
+``update_chunk`` runs K iterations as a ``lax.scan``; the host loop that drives it is
+``elevens.runs``.
 """
 
 from __future__ import annotations
@@ -38,7 +41,6 @@ from flax import struct
 from jax.sharding import Mesh
 
 from elevens.env.params import EnvParams
-from elevens.env.rcss import RcssSoccer
 from elevens.env.soccer import Soccer
 from elevens.env.state import GlobalState, Observation
 from elevens.nets import capacity
@@ -278,14 +280,14 @@ def update_batch(
 def policy_played(setup: Setup, data: Rollout) -> jax.Array | None:
     """bool[G, n, T], False where a routine played instead of the policy, whose sampled
     action there was never played, so those entries leave PPO's policy and entropy terms
-    (``ppo.ppo_loss`` policy_mask): with ``env.goalie`` each goalie (player 0), always; in
-    the server's match episodes whoever its routines played (``Rollout.scripted``). None when
-    the policy played everything."""
+    (``ppo.ppo_loss`` policy_mask): the game's ``scripted_players``, always; in games played
+    outside the simulator whoever their routines played (``Rollout.scripted``). None when the
+    policy played everything."""
     games, n, steps = setup.games, setup.players, data.transitions.reset.shape[-1]
     played = None
-    if setup.config.env.goalie:
-        outfield = jnp.arange(n) != 0
-        played = jnp.broadcast_to(outfield[None, :, None], (games, n, steps))
+    if setup.config.env.scripted_players:
+        by_policy = ~jnp.isin(jnp.arange(n), jnp.asarray(setup.config.env.scripted_players))
+        played = jnp.broadcast_to(by_policy[None, :, None], (games, n, steps))
     if data.scripted is not None:
         by_routine = ~data.scripted.reshape(games, n, steps)
         played = by_routine if played is None else played & by_routine
@@ -457,29 +459,24 @@ def make_learner(
     load_team: TeamLoader | None = None,
     *,
     devices: int = 0,
-    plays_rcssserver: bool = False,
+    external_games: bool = False,
 ) -> Learner:
     """Build the pure functions of ``config`` (validated first: nothing compiles on a bad one)
-    on ``devices`` (``parallel.data_mesh``: 0 = all). ``load_team`` loads the fixed teams of
-    ``opponent.mix``; a config with such teams needs it. ``plays_rcssserver``: the caller
-    plays the games in rcssserver and calls only ``improve`` (``elevens robocup train``), so
-    the policy may give the thesis's 12-value action, which the simulator cannot play.
+    on ``devices`` (``parallel.data_mesh``: 0 = all). The game is ``config.env``'s
+    (``EnvConfig.make_env``). ``load_team`` loads the fixed teams of ``opponent.mix``; a config
+    with such teams needs it. ``external_games``: the caller plays the games outside the
+    compiled unroll and calls only ``improve``, so the policy may give any action size the
+    caller's game takes (``network.actions``), not only the config's game's.
 
     They are cached on their arguments: building the same learner again in one process (a
     resume, a longer run, another run directory) reuses the compiled chunk.
     """
     validate_learner(config)
-    rcss = config.env.physics == "rcss"
-    if config.network.actions != 2 and not (plays_rcssserver or rcss):
+    if config.network.actions != config.env.actions and not external_games:
         raise ValueError(
-            f"network.actions={config.network.actions}: the simulator's game takes the 2-value "
-            "(move, rot) action; a 12-value policy trains in rcssserver (elevens robocup "
-            "train) or in the simulator with the server's bodies (--env.physics rcss)"
-        )
-    if rcss and config.network.actions != 12:
-        raise ValueError(
-            f"env.physics='rcss' takes the thesis's 12-value action: set network.actions=12, "
-            f"not {config.network.actions}"
+            f"network.actions={config.network.actions}: the game env.physics="
+            f"{config.env.physics!r} takes {config.env.actions} action values; a policy of "
+            "another size plays games outside the simulator (external_games)"
         )
     if load_team is None and len(opponent_mix(config)) > 1:
         raise ValueError(
@@ -523,13 +520,7 @@ def make_setup(
     loss = functools.partial(ppo.sequence_loss, policy, critic, hp)
     return Setup(
         config=config,
-        env=(
-            RcssSoccer(
-                n, see_period=config.env.see_period, stamina=config.env.stamina,
-                goalie=config.env.goalie,
-            )
-            if config.env.physics == "rcss" else Soccer(n)
-        ),
+        env=config.env.make_env(n),
         env_params=env_params,
         policy=policy,
         critic=critic,

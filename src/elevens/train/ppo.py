@@ -405,7 +405,7 @@ def ppo_loss(
         old_values: ``f32[...]`` rollout-time values, needed only for value clipping.
         mask: optional ``bool[...]``; only True entries count (in every term and statistic).
         policy_mask: optional ``bool[...]``, True where the policy's own action was played;
-            where a scripted routine played instead (``env.goalie``'s goalie), the entry
+            where a scripted routine played instead (a game's ``scripted_players``), the entry
             counts in the value loss only, not in the policy, entropy or advantage terms.
         hyperparams: weights, clip and switches; ``PPOHyperparams()`` when None.
 

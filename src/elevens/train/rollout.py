@@ -85,8 +85,8 @@ class Rollout:
     approach_shaping: jax.Array  # f32[G] sum over steps of w_a * a, mean over the n players
     possession_shaping: jax.Array  # f32[G] sum over steps of w_p * p (per player)
     possession: jax.Array  # f32[G] the learner's share of steps with the ball minus the opponent's
-    # bool[U, T] where a routine, not the policy, played the learner's player (the server's
-    # match routines, elevens robocup train); None: the policy played every step
+    # bool[U, T] where a routine, not the policy, played the learner's player (games played
+    # outside the simulator, whose match routines take over); None: the policy played every step
     scripted: jax.Array | None = None
 
 

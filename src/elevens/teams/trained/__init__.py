@@ -35,23 +35,40 @@ class ShippedTeamError(ValueError):
     """A shipped team's files are missing or damaged."""
 
 
+_FOLDERS: list[Path] = [_HERE]
+"""Where shipped teams live: beside this file, and folders a package above the core adds for
+the teams of its own games (``add_shipped_folder``)."""
+
+
+def add_shipped_folder(folder: Path) -> None:
+    """Ship the team folders inside ``folder`` too (a game's package calls this on import)."""
+    folder = Path(folder).resolve()
+    if folder not in _FOLDERS:
+        _FOLDERS.append(folder)
+
+
+def _shipped() -> dict[str, Path]:
+    return {
+        entry.name: entry for folder in _FOLDERS for entry in folder.iterdir()
+        if (entry / NETWORKS_FILE).is_file()
+    }
+
+
 def shipped_team_names() -> tuple[str, ...]:
     """The names of the teams shipped with this installation, sorted."""
-    return tuple(sorted(
-        entry.name for entry in _HERE.iterdir() if (entry / NETWORKS_FILE).is_file()
-    ))
+    return tuple(sorted(_shipped()))
 
 
 def shipped_team_directory(name: str) -> Path:
     """The folder of shipped team ``name``; an unknown name is a ``ValueError`` listing the
     shipped ones."""
-    names = shipped_team_names()
-    if name not in names:
+    shipped = _shipped()
+    if name not in shipped:
         raise ValueError(
             f"team {name!r} is not a shipped team: shipped teams are "
-            f"{', '.join(names) or 'none in this installation'}"
+            f"{', '.join(sorted(shipped)) or 'none in this installation'}"
         )
-    return _HERE / name
+    return shipped[name]
 
 
 def save_networks(

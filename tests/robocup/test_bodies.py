@@ -1,5 +1,5 @@
-"""elevens.env.rcss: the server's body model, against hand-worked cases and a running rcssserver
-with its noise switched off."""
+"""elevens.robocup.bodies: the server's body model, against hand-worked cases and a running
+rcssserver with its noise switched off."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from elevens.env import rcss
+from elevens.robocup import bodies as rcss
 from elevens.robocup.protocol import Dash, Kick, Turn
 from tests.robocup.conftest import needs_rcssserver
 

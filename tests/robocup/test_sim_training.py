@@ -1,5 +1,6 @@
-"""Training with rcssserver's bodies (env.physics rcss, elevens.env.rcss.RcssSoccer): the
-compiled trainer runs the 12-value game, and its team plays rcssserver's action mode."""
+"""Training with rcssserver's bodies (elevens.robocup.sim, elevens.robocup.bodies.RcssSoccer):
+the core's compiled trainer runs the 12-value game the wing registers, and its team plays
+rcssserver's action mode."""
 
 from __future__ import annotations
 
@@ -12,20 +13,19 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from elevens.robocup.sim import RcssEnvConfig, rcss_config, rcss_game
 from elevens.runs.logging import read_metrics_csv
 from elevens.runs.loop import train
-from elevens.train.config import validate
+from elevens.train.config import TrainConfig, apply_overrides, validate
 from tests.train.test_trainer import tiny_config
 
-RCSS = {
-    "env.physics": "rcss",
-    "network.actions": 12,
-    "env.ball_friction": 0.94,
-    "env.ball_max_speed": 3.0,
-    "run.eval_teams": ("rcss_naive",),
-    "run.eval_games": 8,
-    "run.write_gif": False,
-}
+RCSS = {"env.ball_friction": 0.94, "env.ball_max_speed": 3.0, "run.eval_games": 8}
+
+
+def rcss_tiny(run_dir: Path | str = "unused", **overrides: Any) -> TrainConfig:
+    """The tests' tiny quickstart config in the game with the server's bodies (not validated)."""
+    return apply_overrides(rcss_game(tiny_config(run_dir), server_field=False),
+                           {**RCSS, **overrides})
 
 
 def test_a_run_with_the_servers_bodies_trains_a_team_for_rcssserver(tmp_path: Path) -> None:
@@ -34,9 +34,7 @@ def test_a_run_with_the_servers_bodies_trains_a_team_for_rcssserver(tmp_path: Pa
     from elevens.robocup.play import load_robocup_team
 
     # A quarter of the games against the scripted 12-value team, which is also the yardstick.
-    config = tiny_config(
-        tmp_path, **{**RCSS, "run.iterations": 4, "opponent.mix": ("rcss_naive=0.25",)}
-    )
+    config = rcss_tiny(tmp_path, **{"run.iterations": 4, "opponent.mix": ("rcss_naive=0.25",)})
     result = train(config, progress=False)
     assert result.checkpoint is not None and result.checkpoint.is_dir()
     curves = read_metrics_csv(tmp_path)
@@ -64,7 +62,7 @@ def test_a_run_with_the_servers_bodies_trains_a_team_for_rcssserver(tmp_path: Pa
 
 
 @pytest.mark.parametrize(
-    ("physics", "flag", "value", "allowed"),
+    ("game", "flag", "value", "allowed"),
     [
         ("rcss", "run.eval_teams", ("naive",), "rcss_naive"),
         ("rcss", "opponent.mix", ("teamwork=0.5",), "rcss_naive"),
@@ -73,34 +71,38 @@ def test_a_run_with_the_servers_bodies_trains_a_team_for_rcssserver(tmp_path: Pa
     ],
 )
 def test_a_handcrafted_team_must_give_the_action_the_game_takes(
-    physics: str, flag: str, value: tuple[str, ...], allowed: str
+    game: str, flag: str, value: tuple[str, ...], allowed: str
 ) -> None:
-    overrides = RCSS if physics == "rcss" else {"run.eval_teams": ()}
+    config = rcss_tiny() if game == "rcss" else tiny_config(**{"run.eval_teams": ()})
     with pytest.raises(ValueError, match=f"{flag} team .* takes .*: the handcrafted teams for it "
                        f"are {allowed}"):
-        validate(tiny_config(**{**overrides, flag: value}))
+        validate(apply_overrides(config, {flag: value}))
 
 
-def test_a_see_period_is_the_servers_only() -> None:
-    validate(tiny_config(**{**RCSS, "env.see_period": 3}))
-    with pytest.raises(ValueError, match="env.see_period=3 is invalid with env.physics='thesis'"):
-        validate(tiny_config(**{"env.see_period": 3}))
+def test_the_games_own_fields_exist_in_its_config_only() -> None:
+    validate(rcss_tiny(**{"env.see_period": 3, "env.stamina": True}))
     with pytest.raises(ValueError, match="env.see_period=0 is invalid"):
-        validate(tiny_config(**{**RCSS, "env.see_period": 0}))
+        validate(rcss_tiny(**{"env.see_period": 0}))
+    for flag in ("env.see_period", "env.stamina", "env.goalie"):
+        with pytest.raises(ValueError, match=f"override '{flag}': unknown field"):
+            tiny_config(**{flag: 3})
+    # The simulator's config cannot be switched to the other game by its name alone.
+    with pytest.raises(ValueError, match="env.physics='rcss' is invalid here: this config's game"):
+        tiny_config(**{"env.physics": "rcss"})
 
 
-def test_stamina_is_the_servers_only() -> None:
-    validate(tiny_config(**{**RCSS, "env.stamina": True}))
-    with pytest.raises(ValueError, match="env.stamina=True is invalid with env.physics='thesis'"):
-        validate(tiny_config(**{"env.stamina": True}))
+def test_the_preset_and_a_saved_config_read_back_as_the_games_class() -> None:
+    config = rcss_config("11v11", **{"env.goalie": True, "env.see_period": 3})
+    assert isinstance(config.learner.env, RcssEnvConfig) and config.preset == "rcss-11v11"
+    assert (config.learner.env.game.field_length, config.learner.network.actions) == (105.0, 12)
+    assert TrainConfig.from_json(config.to_json()) == config
+    assert config.learner.env.scripted_players == (0,)
 
 
 def test_the_goalie_routine_needs_a_player_for_the_policy() -> None:
-    validate(tiny_config(**{**RCSS, "env.goalie": True, "env.players_per_team": 2}))
+    validate(rcss_tiny(**{"env.goalie": True, "env.players_per_team": 2}))
     with pytest.raises(ValueError, match="env.goalie=True is invalid with 1 player a side"):
-        validate(tiny_config(**{**RCSS, "env.goalie": True}))
-    with pytest.raises(ValueError, match="env.goalie=True is invalid with env.physics='thesis'"):
-        validate(tiny_config(**{"env.goalie": True, "env.players_per_team": 2}))
+        validate(rcss_tiny(**{"env.goalie": True}))
 
 
 def test_with_the_goalie_routine_the_goalies_samples_leave_the_policy_loss() -> None:
@@ -109,8 +111,8 @@ def test_with_the_goalie_routine_the_goalies_samples_leave_the_policy_loss() -> 
     from elevens.train import learner, ppo
 
     def loss_of(goalie: bool) -> tuple[ppo.PPOLoss, ppo.PPOLoss, Any]:
-        config = tiny_config(**{
-            **RCSS, "env.goalie": goalie, "env.players_per_team": 2, "games_per_iteration": 4,
+        config = rcss_tiny(**{
+            "env.goalie": goalie, "env.players_per_team": 2, "games_per_iteration": 4,
             "ppo.minibatch_size": 8, "env.episode_length": 8,
         })
         setup = learner.make_setup(config.learner)
@@ -147,8 +149,8 @@ def test_players_a_server_routine_played_leave_the_policy_loss_too() -> None:
     entries join the goalie routine's in the policy mask."""
     from elevens.train import learner
 
-    config = tiny_config(**{
-        **RCSS, "env.goalie": True, "env.players_per_team": 2, "games_per_iteration": 4,
+    config = rcss_tiny(**{
+        "env.goalie": True, "env.players_per_team": 2, "games_per_iteration": 4,
         "ppo.minibatch_size": 8, "env.episode_length": 8,
     })
     setup = learner.make_setup(config.learner)

@@ -11,7 +11,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from elevens.env.rcss import (
+from elevens.eval.match import play_match, summary
+from elevens.robocup.bodies import (
     DASH,
     KICK,
     TURN,
@@ -20,9 +21,8 @@ from elevens.env.rcss import (
     decode_thesis12,
     encode_thesis12,
 )
-from elevens.eval.match import play_match, summary
+from elevens.robocup.rcss_naive import RcssNaiveTeam
 from elevens.runs.teams import load_team, team_on_field
-from elevens.teams.rcss_naive import RcssNaiveTeam
 from elevens.teams.registry import resolve_team
 
 
@@ -151,7 +151,7 @@ def test_the_handcrafted_rcss_naive_is_a_12_value_team_told_the_field() -> None:
     team = load_team("rcss_naive")
     assert team.actions == 12
     team.check_size(11, actions=12)
-    with pytest.raises(ValueError, match="12-value RoboCup action.*env.physics rcss"):
+    with pytest.raises(ValueError, match="gives the thesis's 12-value action, not the simulator's"):
         team.check_size(11)
     with pytest.raises(ValueError, match="gives 2 action values; this game takes 12"):
         load_team("naive").check_size(11, actions=12)

@@ -2,12 +2,12 @@
 
 The thesis's RoboCup naive team (section 6.7; ``elevens.robocup.naive.RoboCupNaiveTeam`` plays
 it in rcssserver) as a pure-JAX ``TeamPolicy`` that gives the 12-value action of
-``elevens.env.rcss.RcssSoccer``: every player chases the ball, turning towards it when it is
+``elevens.robocup.bodies.RcssSoccer``: every player chases the ball, turning towards it when it is
 more than ``chase_tolerance`` off its body and dashing at it otherwise (softer as it comes
 close, so it stops beside the ball), and kicks it at the centre of the opponent goal at full
 power once it is within reach, in whatever direction the body points. So training with
-``--env.physics rcss`` can evaluate against a fixed team and mix one into the opponents, as
-the simulator's own game does with ``naive``.
+``elevens train rcss-2v2`` (``elevens.robocup.sim``) can evaluate against a fixed team and mix
+one into the opponents, as the simulator's own game does with ``naive``.
 
 Its decisions are RoboCupNaiveTeam's with the thesis's 12-value action. What the server's see
 timing forced on that team (remembering commanded turns between stale snapshots, no second
@@ -22,12 +22,12 @@ import math
 import jax
 import jax.numpy as jnp
 
-from elevens.env.rcss import DASH, DEFAULT, KICK, TURN, Commands, encode_thesis12, rcss_field
 from elevens.env.state import Observation
+from elevens.robocup.bodies import DASH, DEFAULT, KICK, TURN, Commands, encode_thesis12, rcss_field
 from elevens.teams.scripted import BallMemory, Field, TeamView, _wrap, read_view
 
 RCSS_FIELD = Field.of(rcss_field())
-"""rcssserver's field and ball (``elevens.env.rcss.rcss_field``)."""
+"""rcssserver's field and ball (``elevens.robocup.bodies.rcss_field``)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -42,6 +42,10 @@ class RcssNaiveTeam:
     """Ball distance (m) at which it kicks: player_size + ball_size + kickable_margin."""
     kick_power: float = 100.0
     """Kick power, 0..100."""
+
+    def on_field(self, field: Field) -> RcssNaiveTeam:
+        """This team on ``field`` (``teams.registry.resolve_team``: rcssserver's by default)."""
+        return dataclasses.replace(self, field=field)
     chase_tolerance: float = math.radians(15.0)
     """Turn towards the ball when its bearing exceeds this, else dash at it."""
     approach_distance: float = 2.5

@@ -23,10 +23,10 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
 
 
 # One compile per computation in a test session: many tests build the same jitted function
-# (a fresh closure each time, e.g. the update step of every `imitate` or training run), which
-# jax's in-memory cache cannot share. jax's persistent cache keys on the lowered program, so a
-# second build with the same shapes loads the executable instead of compiling it again. The
-# directory is new for each session and removed at its end: no run reuses another's compiles.
+# (a fresh closure each time, e.g. the update step of every training run), which jax's
+# in-memory cache cannot share. jax's persistent cache keys on the lowered program, so a second
+# build with the same shapes loads the executable instead of compiling it again. The directory
+# is new for each session and removed at its end: no run reuses another's compiles.
 # Only compiles over 0.1 s are stored (the op-by-op kernels of eager code are not worth a file).
 # With pytest -n, the controlling process makes the directory and its workers share it (they
 # inherit the variable); only the process that made it removes it.

@@ -10,7 +10,7 @@ import json as json_lib
 import sys
 import time
 from dataclasses import asdict, dataclass, replace
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
 import tyro
 
@@ -143,51 +143,6 @@ class RoboCupMatchArgs:
     """Print the summary as one JSON object."""
     rcssserver: str | None = None
     """The server binary (default: $ELEVENS_RCSSSERVER, then PATH)."""
-
-
-@dataclass(frozen=True)
-class RoboCupImitateArgs:
-    """Learn a team from other teams' game logs (behaviour cloning): the (.rcg, .rcl) pairs
-    that `elevens robocup match --log-dir` keeps. Writes a team folder that --team0 plays and
-    --run.init-from fine-tunes (a 12-value team in elevens robocup train only, with
-    --network.actions 12)."""
-
-    logs: tuple[str, ...]
-    """Folders searched for .rcg/.rcl pairs."""
-    team_name: tuple[str, ...]
-    """The demonstrating team's name(s) in the logs, e.g. HELIOS_base."""
-    out: str
-    """The team folder to write."""
-    init_from: str = "elevens-11v11"
-    """The networks to start from (and whose shape the team gets)."""
-    players: int = 11
-    """Players per team in the logs."""
-    steps: int = 2000
-    """Gradient steps."""
-    batch_size: int = 32
-    """Sequences per step."""
-    sequence_length: int = 32
-    """Consecutive cycles per sequence (through the LSTM)."""
-    learning_rate: float = 1e-3
-    """Adam's step size."""
-    labels: Literal["commands", "intent"] = "commands"
-    """commands: each cycle's label is the command sent; intent: the command that heads for
-    where the player will be --lookahead cycles on (kicks stay as sent)."""
-    lookahead: int = 10
-    """Cycles ahead for --labels intent."""
-    action: Literal["sim", "thesis12"] = "sim"
-    """sim: the policy gives (move, rot), as every simulator-trained team; thesis12: the
-    thesis's 12-value RoboCup action (a dash, kick, turn, tackle or nothing, chosen by the
-    largest of five scores, with its direction): it plays rcssserver only."""
-    see_period: int = 3
-    """Cycles between two see messages of an elevens player in a match (3: wide view, synch
-    mode); its view is held in between."""
-    max_minutes: float | None = None
-    """Stop early after this many minutes."""
-    seed: int = 0
-    """Sampling seed."""
-    json: bool = False
-    """Print the result as one JSON object."""
 
 
 @dataclass(frozen=True)
@@ -372,35 +327,6 @@ def match(args: RoboCupMatchArgs) -> None:
         print(summary.line())
 
 
-def imitate(args: RoboCupImitateArgs) -> None:
-    from elevens.robocup.imitate import imitate_from_logs
-
-    try:
-        result = imitate_from_logs(
-            args.logs, args.team_name, args.out, init_from=args.init_from,
-            players_per_team=args.players, steps=args.steps, batch_size=args.batch_size,
-            sequence_length=args.sequence_length, learning_rate=args.learning_rate,
-            see_period=args.see_period, labels=args.labels, lookahead=args.lookahead,
-            action=args.action,
-            max_minutes=args.max_minutes, seed=args.seed,
-            print_fn=(lambda _: None) if args.json else print,
-        )
-    except ValueError as error:
-        exit_with_error("elevens robocup imitate: error", error, 2)
-    if args.json:
-        print(json_lib.dumps(asdict(result)))
-    else:
-        print(
-            f"wrote {args.out}: {result.steps} steps, loss "
-            f"{result.first_loss:.3f} -> {result.last_loss:.3f}; held out: the demonstrator's "
-            f"command in {result.held_out_agreement:.1%} of cycles (mean |move error| "
-            f"{result.held_out_move_error:.3f}; before the first step "
-            f"{result.held_out_agreement_before:.1%} and "
-            f"{result.held_out_move_error_before:.3f}), "
-            f"{result.wall_s:.0f} s"
-        )
-
-
 def _resolvable(host: str) -> str:
     """``host`` if it resolves to an IPv4 address (the server's UDP), else a ValueError."""
     import socket
@@ -458,7 +384,6 @@ COMMANDS: Commands = {
     "robocup-bench": (RoboCupBenchArgs, bench),
     "robocup-match": (RoboCupMatchArgs, match),
     "robocup-team": (RoboCupTeamArgs, team),
-    "robocup-imitate": (RoboCupImitateArgs, imitate),
 }
 """The RoboCup subcommands: name -> (args, command)."""
 

@@ -465,7 +465,7 @@ EVERY_CYCLE_FEATURES = [
     for name in ("time_left", "last_move", "last_rot", "start_x", "start_y")
 ]
 """Self-feature columns the bridge updates every cycle, between sees too (the rest come from a
-see): what a held observation keeps current (here and in ``elevens.robocup.imitate``)."""
+see): what a held observation keeps current."""
 DASH, KICK, TURN, TACKLE, NOOP = range(5)
 
 

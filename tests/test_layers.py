@@ -1,4 +1,4 @@
-"""The packages import in one direction (DESIGN.md):
+"""The packages import in one direction (docs/architecture.md):
 env -> {teams, nets} -> play -> train -> eval -> runs -> {robocup, adapters, bench} -> cli.
 
 Read from the source with ``ast``: every ``import`` and ``from ... import`` counts, those

@@ -15,7 +15,7 @@ pytree the scan stacks, and anything it leaves out is never computed.
 
 The scan observes the state it carries and steps with ``env.transition`` (not ``env.step``):
 XLA then materialises the state once instead of fusing the physics into every observation
-element (PERFORMANCE_NOTES.md).
+element (docs/architecture.md, "Cost").
 """
 
 from __future__ import annotations

@@ -71,7 +71,7 @@ def test_the_real_global_state_of_any_team_size(critic: AttentionCritic, variabl
 def test_parameter_count(critic: AttentionCritic, variables: dict) -> None:
     num_params = sum(leaf.size for leaf in jax.tree.leaves(variables))
     print(f"\nAttentionCritic parameters: {num_params}")
-    # With the policy's 81k, about the thesis's 140k (PERFORMANCE_NOTES.md).
+    # With the policy's 81k, about the thesis's 140k (docs/architecture.md).
     assert 3e4 <= num_params <= 1.5e5
 
 

@@ -248,7 +248,7 @@ def test_the_same_params_serve_every_team_size(policy: AttentionPolicy, variable
 def test_parameter_count_is_near_the_thesis_scale(variables: dict) -> None:
     num_params = count(variables)
     print(f"\nAttentionPolicy parameters: {num_params}")
-    # The thesis's policy plus critic hold about 140k parameters (PERFORMANCE_NOTES.md).
+    # The thesis's policy plus critic hold about 140k parameters (docs/architecture.md).
     assert 5e4 <= num_params <= 2e5
 
 
@@ -262,7 +262,7 @@ def test_forward_cost_per_player_is_near_the_thesis_and_linear_in_slots(
 
     per_player = {n: cost(n) for n in (2, 5, 11)}
     print(f"\npolicy FLOPs per player forward: {per_player}")
-    # PERFORMANCE_NOTES.md: 0.73 MFLOP per player forward in 11 v 11.
+    # docs/architecture.md: 0.73 MFLOP per player forward in 11 v 11.
     assert 0.4e6 < per_player[11] < 1.0e6
     growth = (per_player[11] - per_player[5]) / (per_player[5] - per_player[2])
     assert growth == pytest.approx(2.0, rel=0.05)  # 12 more slots against 6 more

@@ -145,7 +145,7 @@ class Soccer:
 
         Rollouts that observe the state they carry (``observe(state)`` at the top of a scan body)
         use this, so XLA materialises the state instead of fusing physics into every observation
-        element (see PERFORMANCE_NOTES.md).
+        element (docs/architecture.md, "Cost").
         """
         self._check_params(params)
         self.check_actions(actions)

@@ -26,7 +26,7 @@ from elevens.teams.base import TeamPolicy
 from elevens.train.opponents import game_outcome as outcome_from_score
 
 DEFAULT_CHUNK_SIZE = 128
-"""Games vmapped together. Small batches keep the observations in cache (PERFORMANCE_NOTES.md;
+"""Games vmapped together. Small batches keep the observations in cache (docs/architecture.md;
 the chunk sizes measured are in docs/results/throughput.md)."""
 
 

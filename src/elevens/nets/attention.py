@@ -2,7 +2,7 @@
 multi-head attention that pools a variable set of entities (thesis section 3.1.3, table 6.2).
 
 Cost matters here: the attention runs once per (player, entity) pair, so per-entity work is kept to
-what the thesis architecture needs (PERFORMANCE_NOTES.md). Two exact rewrites keep it small:
+what the thesis architecture needs (docs/architecture.md, "Cost"). Two exact rewrites keep it small:
 
 * ``value_ff`` reads the concatenation ``[entity embedding, query]``. Its first layer is split into
   an entity part and a query part, so the query's share is computed once per observer instead of

@@ -14,7 +14,7 @@ Files a ``RunLogger`` writes into its run directory:
 * ``events.log``: one line per notable event (``2025-01-31T12:00:00 step=1200 shaping off``).
 
 Metric names are kept exactly as given; by convention they are namespaced ``train/...``,
-``eval/...``, ``env/...`` (STYLE.md), which TensorBoard groups into sections.
+``eval/...``, ``env/...``, which TensorBoard groups into sections.
 """
 
 from __future__ import annotations

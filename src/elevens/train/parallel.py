@@ -1,4 +1,4 @@
-"""Data-parallel training over every device of every process (DESIGN.md, "Scale").
+"""Data-parallel training over every device of every process (docs/architecture.md, "Scale").
 
 One program for any number of devices: the iteration is written for the whole batch of games,
 as on one device, and ``jit`` over a one-axis ``("data",)`` mesh splits it. The games' arrays are

@@ -12,7 +12,7 @@ Time-axis conventions used by both estimators below:
 * ``rewards[t]`` is the reward received for the action at step ``t``.
 * ``dones[t]`` is True when step ``t`` is the LAST step of its episode: nothing flows from
   ``t + 1`` back into ``t`` (the next step, if any, belongs to a new episode).
-* A time limit is a truncation, not a terminal (STYLE.md). Where the value after a truncation is
+* A time limit is a truncation, not a terminal. Where the value after a truncation is
   known it is bootstrapped from; where it is not, the truncation is treated as a terminal. See the
   docstrings of ``monte_carlo_returns`` and ``gae`` for exactly which argument carries that value.
 """

@@ -490,8 +490,8 @@ def touched_by_another(
             touch.kicks[i] = body.counts.kick
         if body is not None and other and body.collisions and "ball" in body.collisions:
             touched = True
-        if player.see is None:
-            continue
+        if player.see is None or touch.taker is None or touched:
+            continue  # the sees matter only to a ban that is on and not over yet
         balls = [o for o in player.see.objects if o.kind == "ball" and o.distance is not None]
         if not balls:
             continue

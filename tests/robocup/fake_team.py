@@ -1,12 +1,13 @@
 """A stand-in for another team's binaries (helios-base's start.sh) in tests: a small program
 that speaks the player protocol and nothing of elevens.
 
-    python fake_team.py --port P --team NAME [--players N] [--real-time]
+    python fake_team.py --port P --team NAME [--players N] [--real-time] [--leave]
 
 Connects N players (the first as goalie), moves them into their own half before kick-off,
 then each cycle turns and dashes towards the ball when it sees it. In synch mode it answers
 every (think) with its command and (done); in real time it sends one command per sense_body.
-It leaves at time_over or when the server has been silent for 5 s.
+It leaves at time_over or when the server has been silent for 5 s (with --leave: as soon as
+its players are in).
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ def main() -> int:
     parser.add_argument("--team", required=True)
     parser.add_argument("--players", type=int, default=11)
     parser.add_argument("--real-time", action="store_true")
+    parser.add_argument("--leave", action="store_true", help="connect, then leave at once")
     args = parser.parse_args()
     socks = []
     for unum in range(1, args.players + 1):
@@ -40,6 +42,8 @@ def main() -> int:
             return 1
         sock.connect(address)
         socks.append(sock)
+    if args.leave:
+        return 0
     marker = b"(sense_body " if args.real_time else b"(think)"
     ball: list[tuple[float, float] | None] = [None] * len(socks)
     mode = b"before_kick_off"

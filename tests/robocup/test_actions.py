@@ -267,3 +267,43 @@ def test_a_policy_s_action_count_names_its_mode() -> None:
     assert all(action_mode(size) == mode for mode, size in ACTION_SIZES.items())
     with pytest.raises(ValueError, match=r"7 action values has no RoboCupEnv action mode"):
         action_mode(7)
+
+
+def test_a_kick_out_of_reach_becomes_a_dash_towards_the_ball() -> None:
+    """The server ignores a kick with the ball out of reach: a cycle without a dash."""
+    kick = act(I.KICK_SCORE, kick_power=1.0, dash_power=-1.0, turn_moment=0.5)
+    kicks = np.stack([kick] * 4)
+    distance = [0.9, 2.0, 10.0, 1.085]
+    bearing = [0.0, 0.5, -1.0, 0.0]  # radians, + = left of the body
+    commands = actions_to_commands(kicks, ball_distance=distance, ball_bearing=bearing)
+    assert commands[0] == Kick(100.0, 0.0) and commands[3] == Kick(100.0, 0.0)  # in reach
+    # Towards the ball (server directions: + = clockwise); half power near it, full far.
+    assert commands[1] == Dash(50.0, -math.degrees(0.5))
+    assert commands[2] == Dash(100.0, math.degrees(1.0))
+    # Reach by the server's kickable area when it is given (a wider player type's).
+    wide = actions_to_commands(kicks, ball_distance=distance, ball_bearing=bearing, kickable=2.5)
+    assert wide[1] == Kick(100.0, 0.0)
+    # Without the ball's whereabouts every kick goes out as chosen.
+    assert actions_to_commands(kicks) == [Kick(100.0, 0.0)] * 4
+
+
+def test_a_kick_with_the_ball_unseen_becomes_the_policys_dash_or_turn() -> None:
+    unseen = dict(ball_distance=[math.inf], ball_bearing=[math.nan])
+    dash_next = act(I.KICK_SCORE, dash_score=0.5, turn_score=0.2, dash_power=0.5, dash_dir=0.5)
+    assert actions_to_commands(dash_next[None], **unseen) == [Dash(50.0, 45.0)]
+    turn_next = act(I.KICK_SCORE, dash_score=0.2, turn_score=0.5, turn_moment=-0.5)
+    assert actions_to_commands(turn_next[None], **unseen) == [Turn(-90.0)]
+    # Felt close behind ((B), outside the cone): its distance is known, its bearing is not.
+    felt = dict(ball_distance=[2.0], ball_bearing=[math.nan])
+    assert actions_to_commands(turn_next[None], **felt) == [Turn(-90.0)]
+    # No bearing array at all: the same.
+    assert actions_to_commands(turn_next[None], ball_distance=[2.0]) == [Turn(-90.0)]
+    # Other commands are never touched.
+    dash = act(I.DASH_SCORE, dash_power=0.5)
+    assert actions_to_commands(dash[None], **unseen) == [Dash(50.0, 0.0)]
+
+
+def test_ball_arrays_must_match_the_actions() -> None:
+    with pytest.raises(ValueError, match=r"one value per action \(2\), got 3 and 2"):
+        actions_to_commands(np.zeros((2, ACTION_SIZE)), ball_distance=[1, 2, 3],
+                            ball_bearing=[0, 0])

@@ -382,6 +382,29 @@ def test_thesis12_actions_use_the_thesis_mapping() -> None:
     np.testing.assert_allclose(obs.self_features[0, :, S["last_move"]], [-0.5, 0.0])
 
 
+def test_thesis12_kick_out_of_reach_becomes_a_dash_towards_the_ball() -> None:
+    """A kick the server would ignore (ball out of reach) costs a cycle without a dash: the
+    player runs to the ball instead, by its own latest see."""
+    env, clients, _ = make_env(1, action="thesis12", spawn="random")
+    env.reset(seed=3)
+    fake = clients[0]
+    x, y = fake.positions[0, 0]
+    body = math.radians(fake.body[0, 0])
+    aside = body + math.radians(30.0)  # 30 degrees clockwise of its body, 5 m away
+    fake.events.append(dict(ball=(x + 5.0 * math.cos(aside), y + 5.0 * math.sin(aside))))
+    kick = np.full((2, 1, 12), -1.0, np.float32)
+    kick[:, :, ActionIndex.KICK_SCORE] = 1.0
+    env.step(kick)  # the see shows the ball now
+    env.step(kick)
+    ran = fake.sent[-1][0]
+    assert isinstance(ran, Dash) and ran.power == 100.0
+    assert ran.direction == pytest.approx(30.0, abs=1.5)  # the see's directions are integers
+    fake.events.append(dict(ball=(x + 0.6 * math.cos(body), y + 0.6 * math.sin(body))))
+    env.step(kick)
+    env.step(kick)
+    assert isinstance(fake.sent[-1][0], Kick)  # in reach: the kick goes out
+
+
 # -------------------------------------------------------------------- reset and state
 def test_reset_spawns_in_the_server_frame() -> None:
     env, clients, _ = make_env(3)

@@ -4,7 +4,9 @@ installed, and against helios-base where it is built."""
 
 from __future__ import annotations
 
+import contextlib
 import json
+import math
 import os
 import sys
 import threading
@@ -25,7 +27,9 @@ from elevens.robocup.match import (
     parse_team,
     play_match,
     play_matches,
+    played_cycles,
     summarize,
+    t_quantile_975,
 )
 from elevens.robocup.server import ServerAddress, ServerProcess
 from elevens.robocup.team import RoboCupTeam, TeamResult
@@ -184,6 +188,122 @@ def test_summarize_counts_results_and_brackets_the_mean_difference() -> None:
     assert np.isnan(summarize(results[:1]).difference_ci[0])
     with pytest.raises(ValueError, match="no matches"):
         summarize([])
+
+
+def test_the_interval_of_the_mean_difference_is_students_t() -> None:
+    # Differences -3, 0, 2: mean -1/3, standard error 1.453, t(2) = 4.303. A bootstrap's
+    # interval of three matches stays inside the range of the scores, [-3, 2].
+    summary = summarize([_result(i, s) for i, s in enumerate([(0, 3), (1, 1), (2, 0)])])
+    low, high = summary.difference_ci
+    half = 4.303 * float(np.std([-3, 0, 2], ddof=1)) / math.sqrt(3)
+    assert (low, high) == pytest.approx((-1 / 3 - half, -1 / 3 + half))
+    assert low < -6.5 and high > 5.9
+    assert "95% t-interval; under 5 matches: rough" in summary.line()
+    five = summarize([_result(i, (0, i)) for i in range(5)])
+    assert five.line().endswith("(95% t-interval), cycles lost ?")  # no game log read
+    assert "one match: no interval" in summarize([_result(0, (1, 0))]).line()
+
+
+@pytest.mark.parametrize(
+    ("df", "quantile"),
+    [(1, 12.706), (2, 4.303), (4, 2.776), (30, 2.042), (31, 2.0395), (40, 2.0211),
+     (60, 2.0003), (120, 1.9799), (10_000, 1.9602)],
+)
+def test_t_quantiles_match_the_tables(df: int, quantile: float) -> None:
+    assert t_quantile_975(df) == pytest.approx(quantile, abs=2e-4)
+
+
+def test_a_t_quantile_needs_a_degree_of_freedom() -> None:
+    with pytest.raises(ValueError, match="df=0 is invalid: a t quantile needs >= 1"):
+        t_quantile_975(0)
+
+
+FAKE_SERVER = Path(__file__).with_name("fake_rcssserver.py")
+
+
+def _fake_server(tmp_path: Path, cycles: int, score: str = "0-2", missed: str = "") -> str:
+    """A server binary (the fake) that ends its game at ``cycles`` with ``score``."""
+    path = tmp_path / f"rcssserver-{cycles}-{score}"
+    path.write_text(
+        f"#!/bin/sh\nexec {sys.executable} {FAKE_SERVER} --players 2 --cycles {cycles} "
+        f"--score {score} --missed '{missed}' \"$@\"\n"
+    )
+    path.chmod(0o755)
+    return str(path)
+
+
+def _leaving_team(name: str) -> ExternalTeam:
+    cmd = f"{sys.executable} {FAKE_TEAM} --port {{port}} --team {{team}} --players 2 --leave"
+    return ExternalTeam(cmd, name)
+
+
+def test_a_match_the_server_ended_early_shows_the_cycles_it_lost(tmp_path: Path) -> None:
+    """The server exits after 20 cycles in a row without every (done) and still prints a
+    score: only its game log shows that 19 of the 60 cycles were never played."""
+    short = play_match(
+        _leaving_team("a"), _leaving_team("b"), players_per_team=2, half_time=3,
+        rcssserver=_fake_server(tmp_path, 41, "0-2", missed="20,21"),
+    )
+    assert short.score == (0, 2) and short.missed_cycles == 2
+    assert short.server_cycles == 41 and short.lost_cycles == 19
+    full = play_match(
+        _leaving_team("a"), _leaving_team("b"), players_per_team=2, half_time=3,
+        rcssserver=_fake_server(tmp_path, 60, "1-1"), log_dir=tmp_path / "logs",
+    )
+    assert full.score == (1, 1) and full.server_cycles == 60 and full.lost_cycles == 0
+    assert played_cycles(tmp_path / "logs" / "match_000") == 60
+    assert played_cycles(tmp_path) is None  # no game log here
+    summary = summarize([short, full])
+    assert summary.lost_cycles == 19 and "cycles lost 19" in summary.line()
+
+
+def test_match_cli_json_prints_each_match_as_it_ends(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """One JSON line per match as soon as it ends (a long run shows its progress), then the
+    summary; it used to print nothing until the last match had ended."""
+    server = tmp_path / "server"
+    server.write_text(  # each match's server first says how much the CLI has printed so far
+        f"#!/bin/sh\ncat {tmp_path}/printed >> {tmp_path}/seen 2>/dev/null; echo --- >> "
+        f"{tmp_path}/seen\nexec {_fake_server(tmp_path, 60, '0-1')} \"$@\"\n"
+    )
+    server.chmod(0o755)
+    printed: list[str] = []
+
+    class Tee:
+        def write(self, text: str) -> int:
+            printed.append(text)
+            (tmp_path / "printed").write_text("".join(printed))
+            return len(text)
+
+        def flush(self) -> None:
+            pass
+
+    with contextlib.redirect_stdout(Tee()):  # type: ignore[type-var]
+        main(["robocup", "match", "--team0-cmd", _leaving_team("a").cmd, "--team0-name", "a",
+              "--team1-cmd", _leaving_team("b").cmd, "--team1-name", "b", "--players", "2",
+              "--half-time", "3", "--matches", "2", "--json", "--rcssserver", str(server)])
+    before = (tmp_path / "seen").read_text().split("---\n")
+    assert before[0] == ""  # the first match: nothing printed yet
+    first = json.loads(before[1].strip())  # the second: the first match's line
+    assert first["match"] == 0 and first["score"] == [0, 1] and first["lost_cycles"] == 0
+    lines = "".join(printed).strip().splitlines()
+    assert [json.loads(line).get("match") for line in lines] == [0, 1, None]
+    assert json.loads(lines[-1])["matches"] == 2
+
+
+def test_match_cli_help_names_every_placeholder_of_a_start_command(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    with pytest.raises(SystemExit):
+        main(["robocup", "match", "--help"])
+    lines = [line.strip("│ ") for line in capsys.readouterr().out.splitlines()]
+    for flag in ("--team0-cmd", "--team1-cmd"):
+        first = next(i for i, line in enumerate(lines) if line.startswith(flag + " "))
+        end = next(i for i in range(first + 1, len(lines)) if lines[i].startswith("--"))
+        help_text = " ".join(lines[first:end]).removeprefix(flag)
+        for placeholder in ("{host}", "{port}", "{coach_port}", "{team}"):
+            assert placeholder in help_text, (flag, placeholder)
 
 
 def test_parse_team_takes_exactly_one_of_a_spec_and_a_command() -> None:

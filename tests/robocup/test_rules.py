@@ -8,14 +8,17 @@ import math
 import numpy as np
 import pytest
 
-from elevens.robocup.protocol import Catch, Dash, Kick, Move, NoOp, Turn
+from elevens.robocup.client import Cycle, PlayerCycle
+from elevens.robocup.env import RoboCupConfig, robocup_env_params
+from elevens.robocup.observe import PerceptMemory
+from elevens.robocup.protocol import Catch, Dash, Kick, Move, NoOp, Tackle, Turn, parse_message
 from elevens.robocup.rules import (
     CATCH_REACH,
     GUARD_DEPTH,
     RECOVERING_DASH,
     SEARCH_TURN,
-    SECOND_TOUCH_WAIT,
     STAMINA_RESERVE,
+    MatchRoutines,
     SecondTouch,
     TeamView,
     apply_rules,
@@ -24,9 +27,11 @@ from elevens.robocup.rules import (
     kick_off_taker,
     kicks_off_next,
     mode_kind,
+    near_ball,
     no_second_touch,
     pace_dashes,
     set_piece_taker,
+    touched_by_another,
 )
 
 
@@ -272,19 +277,89 @@ def test_the_goalie_takes_only_goal_kicks_and_the_ball_it_holds() -> None:
     assert commands[0] != POLICY[0]  # no goalie: the nearest player, whoever it is
 
 
-def test_a_set_piece_taker_does_not_touch_the_ball_again_before_a_teammate() -> None:
-    kicks = [Kick(50.0, 0.0), Kick(60.0, 0.0), Dash(30.0)]
-    touch = SecondTouch(taker=1, since=10)
-    away = _view(ball_distance=[40.0, 0.5, 30.0])  # the taker is at the ball again
-    assert no_second_touch(kicks, away, touch, 12) == [kicks[0], None, kicks[2]]
+def _banned(taker: int = 1, *, dashed: bool = False) -> SecondTouch:
+    touch = SecondTouch()
+    touch.start(taker, "kick_off_l")
+    touch.observe("play_on", touched=False)
+    touch.dashed = dashed
+    return touch
+
+
+def test_the_ban_on_the_set_piece_taker_lasts_as_the_servers_does() -> None:
+    touch = SecondTouch()
+    touch.start(1, "kick_in_l")
+    touch.observe("kick_in_l", touched=False)  # the kick may not have reached the ball
+    assert touch.taker == 1 and not touch.in_play
+    touch.observe("play_on", touched=False)
+    assert touch.taker == 1 and touch.in_play
+    for _ in range(500):  # no time limit: the server has none
+        touch.observe("play_on", touched=False)
     assert touch.taker == 1
-    # A teammate reaches the ball: the ban is over.
-    reached = _view(ball_distance=[40.0, 0.5, 0.8])
-    assert no_second_touch(kicks, reached, touch, 13) == kicks and touch.taker is None
-    # Or the wait runs out (an opponent may have touched it unseen).
-    touch = SecondTouch(taker=1, since=10)
-    assert no_second_touch(kicks, away, touch, 10 + SECOND_TOUCH_WAIT + 1) == kicks
-    assert no_second_touch(kicks, away, SecondTouch(), 12) == kicks  # no set piece: no ban
+    touch.observe("play_on", touched=True)  # another player touched the ball
+    assert touch.taker is None
+    # Any stoppage after the kick ends it, our own next set piece of the same kind included.
+    for mode in ("kick_in_r", "kick_in_l", "drop_ball", "offside_r"):
+        touch = _banned()
+        touch.observe(mode, touched=False)
+        assert touch.taker is None, mode
+    # Before play_on was seen, another mode than the set piece's ends it too.
+    touch = SecondTouch()
+    touch.start(1, "kick_off_l")
+    touch.observe("free_kick_r", touched=False)
+    assert touch.taker is None
+    # The taker's dash is noted; nobody else's.
+    touch = _banned()
+    touch.sent([Dash(50.0), Turn(10.0), None])
+    assert not touch.dashed
+    touch.sent([None, Dash(10.0), None])
+    assert touch.dashed
+
+
+def test_the_banned_taker_touches_nothing_after_a_dash_and_does_not_run_into_the_ball() -> None:
+    near = _view(ball_distance=[40.0, 1.5, 30.0])
+    far = _view(ball_distance=[40.0, 8.0, 30.0])
+    kick, dash, turn = Kick(60.0, 0.0), Dash(100.0), Turn(30.0)
+    others = [Dash(10.0), None, Dash(30.0)]
+
+    def sent(command: object, view: TeamView, touch: SecondTouch) -> object:
+        commands = list(others)
+        commands[1] = command
+        out = no_second_touch(commands, view, touch)
+        assert out[0] is others[0] and out[2] is others[2]  # only the taker is held
+        return out[1]
+
+    # Not dashed since its kick: a touch is no fault (the server's compound kick)...
+    assert sent(kick, near, _banned()) is kick
+    # ... but a dash near the ball would run into it (a collision is a touch).
+    assert sent(dash, near, _banned()) is None
+    assert sent(dash, far, _banned()) is dash and sent(turn, near, _banned()) is turn
+    # Once it has dashed, no kick, tackle or catch, wherever the ball is.
+    for touch_command in (kick, Tackle(0.0), Catch(0.0)):
+        assert sent(touch_command, near, _banned(dashed=True)) is None
+    assert sent(turn, near, _banned(dashed=True)) is turn
+    assert sent(dash, far, _banned(dashed=True)) is dash
+    # No ban, or a ban before the ball is in play (the set piece's routine plays): unchanged.
+    assert no_second_touch([kick, kick, dash], near, SecondTouch()) == [kick, kick, dash]
+    pending = SecondTouch()
+    pending.start(1, "kick_off_l")
+    assert no_second_touch([kick, dash, dash], near, pending) == [kick, dash, dash]
+
+
+def test_how_near_is_near_grows_with_the_age_of_the_see() -> None:
+    # 0.385 m to touch plus 1.05 m a cycle over the see's age plus two cycles.
+    fresh = _view(ball_distance=[40.0, 3.0, 30.0])
+    assert not near_ball(fresh, 1)  # 3.0 > 0.385 + 2 x 1.05
+    old = dataclasses.replace(fresh, stale=np.array([0, 1, 0], np.int32))
+    assert near_ball(old, 1)  # 3.0 <= 0.385 + 3 x 1.05
+    # The taker does not see the ball: the nearest teammate that does places it.
+    behind = _view(
+        position=np.array([[-50.0, 0.0], [0.0, 0.0], [3.0, 0.0]]),
+        ball_seen=[False, False, True],
+        ball_distance=[np.inf, np.inf, 2.0],
+        ball_bearing=[0.0, 0.0, math.pi],  # player 2 faces away: the ball is at (1, 0)
+    )
+    assert near_ball(behind, 1)
+    assert not near_ball(_view(ball_seen=[False] * 3), 1)  # nobody sees it: not held
 
 
 def test_routines_turn_on_a_fresh_see_only() -> None:
@@ -323,3 +398,114 @@ def test_the_set_piece_taker_stays_while_it_sees_the_ball() -> None:
     lost = _view(ball_distance=[40.0, 20.0, 15.0], ball_seen=[True, False, True])
     assert set_piece_taker(lost, exclude=0, keep=1) == 2  # it lost the ball: the nearest
     assert set_piece_taker(view, exclude=1, keep=1) == 2  # excluded (the goalie)
+
+
+# -- the ban from the server's messages ----------------------------------------------------
+
+NAMES = ("mine", "opp")
+
+
+def _sense(time: int, kick: int = 0, dash: int = 0, collision: str = "none") -> object:
+    """A v18 sense_body as rcssserver 19 sends it, with the counts and collisions given."""
+    return parse_message(
+        f"(sense_body {time} (view_mode high wide) (stamina 8000 1 130600) (speed 0 0) "
+        f"(head_angle 0) (kick {kick}) (dash {dash}) (turn 0) (say 0) (turn_neck 0) (catch 0) "
+        "(move 0) (change_view 1) (change_focus 0) (arm (movable 0) (expires 0) (target 0 0) "
+        "(count 0)) (focus (target none) (count 0)) (tackle (expires 0) (count 0)) "
+        f"(collision {collision}) (foul (charged 0) (card none)) (focus_point 0 0))"
+    )
+
+
+def _player(unum: int, sense: object, see: str | None = None) -> PlayerCycle:
+    return PlayerCycle(0, unum, None if see is None else parse_message(see), sense, (), True)
+
+
+def _cycle(*players: PlayerCycle, mode: str = "play_on", time: int = 30) -> Cycle:
+    return Cycle(players, None, mode, (0, 0), (0, 0), time, 0, 0)
+
+
+def _counts(time: int, kicks: tuple[int, int, int], collision: str = "none") -> list[PlayerCycle]:
+    return [
+        _player(i + 1, _sense(time, kick, collision=collision if i == 2 else "none"))
+        for i, kick in enumerate(kicks)
+    ]
+
+
+def test_a_teammates_kick_count_or_its_collision_with_the_ball_is_a_touch() -> None:
+    touch = _banned(taker=1)
+    assert not touched_by_another(_cycle(*_counts(30, (0, 1, 0))), 0, 3, touch, NAMES)
+    # The taker's own kick (a compound kick) is not another player's touch.
+    assert not touched_by_another(_cycle(*_counts(31, (0, 2, 0))), 0, 3, touch, NAMES)
+    # Player 3's count rose: the server counts kicks that reached the ball only.
+    assert touched_by_another(_cycle(*_counts(32, (0, 2, 1))), 0, 3, touch, NAMES)
+    assert touch.kicks == {0: 0, 1: 2, 2: 1}
+    assert not touched_by_another(_cycle(*_counts(33, (0, 2, 1))), 0, 3, touch, NAMES)
+    collided = _cycle(*_counts(34, (0, 2, 1), collision="(ball) (player)"))
+    assert touched_by_another(collided, 0, 3, touch, NAMES)
+    taker_collided = [_player(2, _sense(35, 2, collision="(ball)"))]
+    assert not touched_by_another(_cycle(*taker_collided), 0, 3, touch, NAMES)
+
+
+def test_an_opponent_seen_kicking_with_the_ball_in_its_reach_is_a_touch() -> None:
+    touch = _banned(taker=1)
+    sense = _sense(30)
+    # The ball 5 m ahead; an opponent 0.9 m beyond it, kicking ("k").
+    kicking = "(see 30 ((b) 5 0 0 0) ((p \"opp\" 9) 5.9 0 0 0 10 10 k))"
+    assert touched_by_another(_cycle(_player(1, sense, kicking)), 0, 3, touch, NAMES)
+    # "k" marks a kick attempt: 3 m from the ball it did not reach it.
+    missed = "(see 30 ((b) 5 0 0 0) ((p \"opp\" 9) 8 0 0 0 10 10 k))"
+    assert not touched_by_another(_cycle(_player(1, sense, missed)), 0, 3, touch, NAMES)
+    # Not kicking, or a teammate (its own sense_body says for sure), or a team unknown.
+    still = "(see 30 ((b) 5 0 0 0) ((p \"opp\" 9) 5.9 0 0 0 10 10))"
+    mate = "(see 30 ((b) 5 0 0 0) ((p \"mine\" 3) 5.9 0 0 0 10 10 k))"
+    unknown = "(see 30 ((b) 5 0 0 0) ((p) 5.9 0 k))"
+    for see in (still, mate, unknown):
+        assert not touched_by_another(_cycle(_player(1, sense, see)), 0, 3, touch, NAMES), see
+    # An opponent team not named (a team told no opponent name): any other named team.
+    assert touched_by_another(_cycle(_player(1, sense, kicking)), 0, 3, touch, ("mine", ""))
+
+
+def _memory_seeing(ball: dict[int, float], stale: int = 0) -> PerceptMemory:
+    """Three players of the left team at (-50, 0), (-1, 0), (-10, 5) facing the opponent goal,
+    each seeing the ball dead ahead at ``ball[i]`` metres (none for others)."""
+    memory = PerceptMemory(robocup_env_params(RoboCupConfig(players_per_team=3)), NAMES)
+    positions = np.zeros((2, 3, 2))
+    positions[0] = [[-50.0, 0.0], [-1.0, 0.0], [-10.0, 5.0]]
+    memory.reset(positions, np.zeros((2, 3)))
+    sees = [
+        PlayerCycle(0, i + 1, parse_message(f"(see 30 ((b) {d} 0 0 0))"), None, (), True)
+        for i, d in ball.items()
+    ]
+    memory.update(sees)
+    memory.stale[:] += stale
+    return memory
+
+
+def test_match_routines_hold_the_kick_off_taker_until_a_teammate_plays_the_ball() -> None:
+    """The defect read from 15 matches against helios-base: after the kick-off the taker
+    dashed into its own ball (a second touch: free_kick_fault, then a goal against)."""
+    routines = MatchRoutines(0, 3)
+    dash = [Dash(100.0), Dash(100.0), Dash(100.0)]
+    kick = [None, Kick(80.0, 0.0), None]
+    cycle = 30
+
+    def step(mode: str, ball: dict[int, float], policy: list, kicks=(0, 0, 0)) -> list:
+        nonlocal cycle
+        routines.observe_mode(mode)
+        out, _ = routines.apply(policy, _memory_seeing(ball), _cycle(*_counts(cycle, kicks)))
+        cycle += 1
+        return out
+
+    out = step("kick_off_l", {1: 0.7, 2: 9.0}, dash)  # the taker at the ball kicks off
+    assert isinstance(out[1], Kick) and routines.touch.taker == 1
+    out = step("play_on", {1: 1.5, 2: 8.0}, dash, kicks=(0, 1, 0))  # it runs after the ball
+    assert out[1] is None and out[2] == dash[2] and routines.scripted[1]
+    out = step("play_on", {1: 1.0, 2: 7.0}, kick, kicks=(0, 1, 0))  # no dash yet: no fault
+    assert out[1] == kick[1]
+    out = step("play_on", {1: 8.0, 2: 1.0}, dash, kicks=(0, 2, 0))  # the ball is away now
+    assert isinstance(out[1], Dash) and routines.touch.dashed
+    out = step("play_on", {1: 0.9, 2: 1.0}, kick, kicks=(0, 2, 0))  # back at the ball
+    assert out[1] is None
+    # Player 3 kicked the ball (its count rose): the ban is over.
+    out = step("play_on", {1: 0.9, 2: 1.0}, kick, kicks=(0, 2, 1))
+    assert out[1] == kick[1] and routines.touch.taker is None and not routines.scripted[1]

@@ -101,10 +101,11 @@ class RoboCupMatchArgs:
     team1: str | None = None
     """Right team, as --team0 (or use --team1-cmd)."""
     team0_cmd: str | None = None
-    """Left team as a start command; {host}, {port} and {team} are filled in, e.g.
-    "HELIOS/start.sh -p {port} -t {team}"."""
+    """Left team as a start command; {host}, {port} (players), {coach_port} (online coach) and
+    {team} are filled in, e.g. "HELIOS/start.sh -p {port} -P {coach_port} -t {team}"."""
     team1_cmd: str | None = None
-    """Right team as a start command, as --team0-cmd."""
+    """Right team as a start command; {host}, {port} (players), {coach_port} (online coach)
+    and {team} are filled in, as in --team0-cmd."""
     team0_name: str = "elevens"
     """Left team's name in the server (at most 15 of A-Z a-z 0-9 _ + -)."""
     team1_name: str = "opponent"
@@ -140,7 +141,8 @@ class RoboCupMatchArgs:
     results: str | None = None
     """Append one JSON line per match to this file."""
     json: bool = False
-    """Print the summary as one JSON object."""
+    """Print one JSON line per match as it ends (what --results appends), then the summary as
+    one JSON object."""
     rcssserver: str | None = None
     """The server binary (default: $ELEVENS_RCSSSERVER, then PATH)."""
 
@@ -318,7 +320,10 @@ def match(args: RoboCupMatchArgs) -> None:
         team0, team1, matches=args.matches, players_per_team=args.players,
         synch=not args.real_time, half_time=args.half_time, log_dir=args.log_dir,
         rcssserver=binary, results_path=args.results,
-        print_fn=(lambda _: None) if args.json else print,
+        print_fn=(lambda _: None) if args.json else (lambda line: print(line, flush=True)),
+        on_result=(
+            (lambda r: print(json_lib.dumps(asdict(r)), flush=True)) if args.json else None
+        ),
     )
     summary = summarize(results)
     if args.json:

@@ -23,7 +23,8 @@ cycle because the server takes one body command per cycle):
    server clamps negative power to 0 since protocol v17, as elevens.robocup.actions does);
    move = rot = 0 sends only ``(done)``.
 
-"thesis12" actions f32[2, n, 12] go through elevens.robocup.actions.actions_to_commands. Either
+"thesis12" actions f32[2, n, 12] go through elevens.robocup.actions.actions_to_commands (a kick
+with the ball out of reach, by the player's latest see, becomes a dash towards it). Either
 way ``State.last_actions`` and the observations' ``last_move``/``last_rot`` hold 2 values: the
 clipped (move, rot) for "sim"; for "thesis12" a summary of the command sent (dash: the forward
 part of its power, power / 100 * cos(direction), -1 = full backwards; turn: moment / 180; kick,
@@ -250,6 +251,13 @@ def kickable_distance(params: ServerParams | None = None) -> float:
     """player_size + ball_size + kickable_margin (1.085 m for the default player type)."""
     p = params if params is not None else ServerParams.defaults()
     return p.get_float("player_size") + p.get_float("ball_size") + p.get_float("kickable_margin")
+
+
+def ball_bearings(memory: PerceptMemory) -> np.ndarray:
+    """Each player's bearing of the ball f[2, n] (radians, + = left of its body) in its latest
+    see; NaN where that see did not show the ball in the view cone."""
+    ball = memory.entities[..., -1, :]
+    return np.where(memory.mask[..., -1], np.arctan2(ball[..., 2], ball[..., 1]), np.nan)
 
 
 def sim_actions_to_commands(
@@ -596,7 +604,10 @@ class RoboCupEnv:
                 scaling=self._scaling,
             )
             return commands, applied
-        commands = actions_to_commands(arr, self._scaling)
+        commands = actions_to_commands(
+            arr, self._scaling, ball_distance=self._memory.ball_distance,
+            ball_bearing=ball_bearings(self._memory), kickable=self._kickable,
+        )
         summary = [command_summary(c, self._scaling) for c in commands]
         applied = np.asarray(summary, np.float32).reshape(2, self.players_per_team, 2)
         return commands, applied

@@ -7,7 +7,10 @@ first team to connect gets the left side), then the right team, and waits for th
 the game. Each team is an elevens team (a spec as ``elevens robocup play`` takes it, run as
 ``elevens robocup team`` in a child process) or another team's start command
 (:class:`ExternalTeam`, e.g. helios-base's ``start.sh``), with ``{host}``, ``{port}`` and
-``{team}`` filled in. The score comes from the server's own "Score: L - R" line.
+``{team}`` filled in. The score comes from the server's own "Score: L - R" line, the cycles it
+played from the last ``(show T ...)`` of its game log (kept in a temporary folder when no log
+folder is given): a server that ends early (it exits after 20 cycles in a row without every
+``(done)``) still prints a score, and only the game log shows the cycles lost.
 """
 
 from __future__ import annotations
@@ -39,6 +42,8 @@ __all__ = [
     "ElevensTeam",
     "ExternalTeam",
     "MatchResult",
+    "played_cycles",
+    "t_quantile_975",
     "MatchSummary",
     "play_match",
     "play_matches",
@@ -65,6 +70,8 @@ MATCH_OPTIONS: dict[str, str] = {
     "server::synch_mode": "true",
 }
 _SCORE = re.compile(r"Score:\s*(\d+)\s*-\s*(\d+)")
+_SHOW = re.compile(rb"\(show (\d+) ")
+_SHOW_BYTES = 1 << 16  # the tail of a game log read for its last show (one is ~3.2 KB)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -112,11 +119,14 @@ class MatchResult:
     names: tuple[str, str]  # left, right team names
     score: tuple[int, int]  # left, right goals
     wall_s: float
-    server_cycles: int  # the server's clock at the end (6000 for a regulation match)
+    server_cycles: int | None  # the server's clock at the end, from its game log (None: none)
     missed_cycles: int  # "Someone missed a cycle" lines in the server's log (synch mode)
     log_dir: str | None  # where the .rcg/.rcl went, when logging was on
     teams: tuple[dict[str, Any] | None, dict[str, Any] | None] = (None, None)
     """Each elevens team's own report (robocup.team.TeamResult: late cycles, catches, ...)."""
+    lost_cycles: int | None = None
+    """Regulation cycles (two halves of ``half_time``) the server did not play: it ended the
+    match early. None when its game log could not be read."""
 
     @property
     def difference(self) -> int:
@@ -134,29 +144,68 @@ class MatchSummary:
     goals_for: float  # mean per match, team0
     goals_against: float
     difference: float  # mean score difference, team0 minus team1
-    difference_ci: tuple[float, float]  # 95% bootstrap interval of the mean difference
+    difference_ci: tuple[float, float]  # 95% t-interval of the mean difference (nan: 1 match)
+    lost_cycles: int | None = None  # summed over the matches (None: no game log was read)
 
     def line(self) -> str:
         low, high = self.difference_ci
+        if self.matches < 2:
+            interval = "(one match: no interval)"
+        else:
+            interval = f"[{low:+.2f}, {high:+.2f}] (95% t-interval"
+            interval += f"; under {FEW_MATCHES} matches: rough)" if self.few else ")"
+        lost = "?" if self.lost_cycles is None else str(self.lost_cycles)
         return (
             f"{self.names[0]} v {self.names[1]}: {self.matches} matches, W/D/L "
             f"{self.wins}/{self.draws}/{self.losses}, goals {self.goals_for:.2f} - "
-            f"{self.goals_against:.2f}, score difference {self.difference:+.2f} "
-            f"[{low:+.2f}, {high:+.2f}]"
+            f"{self.goals_against:.2f}, score difference {self.difference:+.2f} {interval}, "
+            f"cycles lost {lost}"
         )
 
+    @property
+    def few(self) -> bool:
+        """Too few matches for the interval to say much (it leans on normal scores)."""
+        return self.matches < FEW_MATCHES
 
-def summarize(results: Sequence[MatchResult], *, seed: int = 0) -> MatchSummary:
-    """W/D/L of the left team and its mean score difference with a 95% bootstrap interval."""
+
+FEW_MATCHES = 5
+# Student's t, 97.5% quantile, 1 to 30 degrees of freedom (standard tables).
+_T975 = (
+    12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228,
+    2.201, 2.179, 2.160, 2.145, 2.131, 2.120, 2.110, 2.101, 2.093, 2.086,
+    2.080, 2.074, 2.069, 2.064, 2.060, 2.056, 2.052, 2.048, 2.045, 2.042,
+)
+_Z975 = 1.959963984540054
+
+
+def t_quantile_975(df: int) -> float:
+    """Student's t 97.5% quantile for ``df`` >= 1 degrees of freedom: the table up to 30,
+    beyond it the Cornish-Fisher expansion about the normal quantile (error < 1e-4 there)."""
+    if df < 1:
+        raise ValueError(f"df={df!r} is invalid: a t quantile needs >= 1 degree of freedom")
+    if df <= len(_T975):
+        return _T975[df - 1]
+    z = _Z975
+    return (
+        z
+        + (z**3 + z) / (4 * df)
+        + (5 * z**5 + 16 * z**3 + 3 * z) / (96 * df**2)
+        + (3 * z**7 + 19 * z**5 + 17 * z**3 - 15 * z) / (384 * df**3)
+    )
+
+
+def summarize(results: Sequence[MatchResult]) -> MatchSummary:
+    """W/D/L of the left team and its mean score difference with a 95% t-interval (a
+    bootstrap's interval of 3 matches is the range of their scores, far too narrow)."""
     if not results:
         raise ValueError("no matches to summarize")
     diff = np.array([r.difference for r in results], np.float64)
     if len(diff) > 1:
-        rng = np.random.default_rng(seed)
-        means = diff[rng.integers(0, len(diff), (10_000, len(diff)))].mean(axis=1)
-        ci = (float(np.percentile(means, 2.5)), float(np.percentile(means, 97.5)))
+        half = t_quantile_975(len(diff) - 1) * float(diff.std(ddof=1)) / math.sqrt(len(diff))
+        ci = (float(diff.mean()) - half, float(diff.mean()) + half)
     else:
         ci = (math.nan, math.nan)
+    lost = [r.lost_cycles for r in results if r.lost_cycles is not None]
     return MatchSummary(
         names=results[0].names,
         matches=len(results),
@@ -167,7 +216,22 @@ def summarize(results: Sequence[MatchResult], *, seed: int = 0) -> MatchSummary:
         goals_against=float(np.mean([r.score[1] for r in results])),
         difference=float(diff.mean()),
         difference_ci=ci,
+        lost_cycles=sum(lost) if lost else None,
     )
+
+
+def played_cycles(folder: str | os.PathLike[str]) -> int | None:
+    """The server's clock at the end of the game logged in ``folder``: the time of the last
+    ``(show T ...)`` of its .rcg (None: no game log, or one without a show)."""
+    found: int | None = None
+    for path in sorted(Path(folder).glob("*.rcg")):
+        with open(path, "rb") as f:
+            f.seek(max(0, path.stat().st_size - _SHOW_BYTES))
+            shows = _SHOW.findall(f.read())
+        if shows:
+            last = int(shows[-1])
+            found = last if found is None else max(found, last)
+    return found
 
 
 def play_match(
@@ -206,6 +270,11 @@ def play_match(
     else:
         game_logs = None
         log_path = work / "rcssserver.log"
+        # The .rcg alone, for the cycles played (the .rcl, much larger, is not needed).
+        options.update({
+            "server::game_logging": "true", "server::text_logging": "false",
+            "server::game_log_dir": str(work.resolve()),
+        })
     server = ServerProcess(rcssserver, options=options, log_path=log_path)
     procs: list[subprocess.Popen[bytes]] = []
     began = time.perf_counter()
@@ -243,15 +312,18 @@ def play_match(
                     f"\n{tail}"
                 )
         reports = tuple(_team_report(work / f"{team.name}.log") for team in (team0, team1))
+        played = played_cycles(game_logs if game_logs is not None else work)
+        regulation = 20 * half_time  # two halves; half_time counts tenths of 100 cycles
         return MatchResult(
             match=match,
             names=(team0.name, team1.name),
             score=(int(score.group(1)), int(score.group(2))),
             wall_s=time.perf_counter() - began,
-            server_cycles=20 * half_time,  # half_time counts tenths of a 100-cycle second
+            server_cycles=played,
             missed_cycles=len(times),
             log_dir=str(game_logs) if game_logs is not None else None,
             teams=(reports[0], reports[1]),
+            lost_cycles=None if played is None else max(0, regulation - played),
         )
     finally:
         for proc in procs:
@@ -294,10 +366,12 @@ def play_matches(
     matches: int = 1,
     print_fn: Callable[[str], None] = print,
     results_path: str | os.PathLike[str] | None = None,
+    on_result: Callable[[MatchResult], None] | None = None,
     **kwargs: Any,
 ) -> list[MatchResult]:
     """``matches`` matches (sides kept: team0 always left); one line printed per match, one
-    JSON line appended per match to ``results_path``."""
+    JSON line appended per match to ``results_path``, ``on_result`` called with each match's
+    result as it ends."""
     if matches < 1:
         raise ValueError(f"matches={matches!r} is invalid: it must be >= 1")
     if kwargs.get("log_dir") is not None:
@@ -307,13 +381,18 @@ def play_matches(
     for m in range(matches):
         result = play_match(team0, team1, match=m, **kwargs)
         results.append(result)
+        played = "?" if result.server_cycles is None else result.server_cycles
+        lost = "?" if result.lost_cycles is None else result.lost_cycles
         print_fn(
             f"match {m}: {result.names[0]} {result.score[0]} - {result.score[1]} "
-            f"{result.names[1]} ({result.wall_s:.0f} s, missed cycles {result.missed_cycles})"
+            f"{result.names[1]} ({result.wall_s:.0f} s, {played} cycles, lost {lost}, "
+            f"missed cycles {result.missed_cycles})"
         )
         if results_path is not None:
             with open(results_path, "a") as f:
                 f.write(json.dumps(dataclasses.asdict(result)) + "\n")
+        if on_result is not None:
+            on_result(result)
     return results
 
 

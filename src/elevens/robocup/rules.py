@@ -20,9 +20,14 @@ some of them with short scripted routines, then hands back to the policy when pl
 * **the goalie guards the goal** in play and in set pieces it does not take (:func:`guard_goal`):
   it faces the ball and keeps to the line from the goal's centre to the ball, closer to the
   ball as it comes; a ball inside the penalty area it goes for, so that it can catch it.
-* **no second touch** (:func:`no_second_touch`): the player that took a set piece does not kick
-  the ball again before a teammate has been at it (the server gives the opponents a free kick
-  for it, ``free_kick_fault``), or until ``SECOND_TOUCH_WAIT`` cycles have passed.
+* **no second touch** (:class:`SecondTouch`, :func:`no_second_touch`): rcssserver gives the
+  opponents a free kick (``free_kick_fault``) when the player that put the ball in play from a
+  set piece touches it again (a kick, a tackle, a catch, or running into it) after a dash of
+  its own, before another player has touched it. So after its kick the taker sends no kick,
+  tackle or catch once it has dashed, and no dash while the ball is near enough to run into;
+  the ban lasts until the server shows another touch (a teammate's kick count or its collision
+  with the ball in its sense_body, an opponent seen kicking with the ball in its reach) or the
+  play mode leaves play_on.
 
 Frames as elevens.robocup.observe: each team's own frame (x towards the opponent goal, y up,
 radians, + = to the left); server commands in degrees with + = clockwise.
@@ -47,7 +52,7 @@ from elevens.robocup.bodies import (
 )
 from elevens.robocup.bodies import PENALTY_AREA as RCSS_PENALTY_AREA
 from elevens.robocup.observe import FIELD_LENGTH, FIELD_WIDTH, PerceptMemory
-from elevens.robocup.protocol import Catch, Command, Dash, Kick, Move, Turn
+from elevens.robocup.protocol import Catch, Command, Dash, Kick, Move, Tackle, Turn
 
 __all__ = [
     "CATCH_REACH",
@@ -58,9 +63,12 @@ __all__ = [
     "apply_rules",
     "kick_off_positions",
     "kicks_off_next",
+    "near_ball",
+    "touched_by_another",
     "guard_goal",
     "mode_kind",
     "no_second_touch",
+    "SecondTouch",
 ]
 
 CATCH_REACH = 1.15  # metres: server::catchable_area_l = 1.2, less the see's quantisation
@@ -395,40 +403,145 @@ def guard_goal(
     return out, True
 
 
-SECOND_TOUCH_WAIT = 50
-"""Cycles after which a set piece's taker may kick again even if no teammate was seen at the
-ball (an opponent may have touched it, which the team cannot see for sure)."""
+# rcssserver 19 (FreeKickRef): once the set piece's kick is taken, a touch by the same player
+# (kick, tackle, catch or a collision with the ball) is a free_kick_fault if that player has
+# dashed since the kick; a touch by anyone else, or any play mode but play_on, ends it. The
+# server counts a kick only when the ball was in reach (sense_body's kick count), so a
+# teammate's rising count is a touch; its sense_body's collision with the ball is one too.
+_COLLIDE = 0.385  # player_size + ball_size: closer than this, the player runs into the ball
+_PLAYER_SPEED_MAX = 1.05  # metres a cycle (player_speed_max of the default player type)
+_TOUCHES = (Kick, Tackle, Catch)
 
 
 @dataclasses.dataclass
 class SecondTouch:
-    """Who took the last set piece, and when (cycles of this team's clock)."""
+    """The server's ban on a set piece's taker (module docstring), as one team can follow it.
+
+    ``taker``: the player that took our last set piece (None: no ban); ``mode``: the set piece's
+    play mode; ``in_play``: play_on was seen since the kick; ``dashed``: a dash went out to the
+    taker since its kick (after that, any touch is a fault); ``kicks``: each player's kick
+    count at its latest sense_body."""
 
     taker: int | None = None
-    since: int = 0
+    mode: str = ""
+    in_play: bool = False
+    dashed: bool = False
+    kicks: dict[int, int] = dataclasses.field(default_factory=dict)
+
+    def start(self, taker: int, mode: str) -> None:
+        """``taker`` kicked in our set piece ``mode``: the ban begins (again, after a kick that
+        may not have reached the ball)."""
+        self.taker, self.mode, self.in_play, self.dashed = taker, mode, False, False
+
+    def observe(self, mode: str, touched: bool) -> None:
+        """This cycle's play mode and whether another player touched the ball (see
+        :func:`touched_by_another`): the ban ends as the server's does."""
+        if self.taker is None:
+            return
+        if touched:
+            self.taker = None
+        elif mode == "play_on":
+            self.in_play = True
+        elif self.in_play or mode != self.mode:
+            # Any stoppage after the kick clears the server's ban; before play_on was seen,
+            # only the set piece's own mode (the kick may not have reached the ball) keeps it.
+            self.taker = None
+
+    def sent(self, commands: Sequence[Command | None]) -> None:
+        """The commands that went out this cycle: note the taker's dash."""
+        if self.taker is not None and isinstance(commands[self.taker], Dash):
+            self.dashed = True
+
+
+def _relative(obj: Any) -> np.ndarray | None:
+    """A see object's position relative to the seer's head (metres; frame irrelevant)."""
+    if obj.distance is None:
+        return None
+    angle = math.radians(obj.direction)
+    return obj.distance * np.array([math.cos(angle), math.sin(angle)])
+
+
+def touched_by_another(
+    cycle: Any,
+    side: int,
+    n: int,
+    touch: SecondTouch,
+    team_names: tuple[str, str],
+    *,
+    kickable: float = KICKABLE,
+) -> bool:
+    """Whether this cycle's percepts show a player other than ``touch.taker`` touching the
+    ball in the step that just passed: a teammate's sense_body kick count rose (the server
+    counts only kicks that reached the ball) or it reports a collision with the ball; or one
+    of our players sees an opponent kicking (the ``k`` mark) with the ball, in the same see,
+    within ``kickable`` of it. ``touch.kicks`` is updated. Team mates seen kicking do not count:
+    their own sense_body says for sure."""
+    touched = False
+    ours = team_names[side]
+    for player in cycle.players:
+        i = player.unum - 1
+        if player.side != side or not 0 <= i < n:
+            continue
+        body = player.sense_body
+        other = i != touch.taker
+        if body is not None and body.counts.kick is not None:
+            before = touch.kicks.get(i)
+            touched |= other and before is not None and body.counts.kick > before
+            touch.kicks[i] = body.counts.kick
+        if body is not None and other and body.collisions and "ball" in body.collisions:
+            touched = True
+        if player.see is None or touch.taker is None or touched:
+            continue  # the sees matter only to a ban that is on and not over yet
+        balls = [o for o in player.see.objects if o.kind == "ball" and o.distance is not None]
+        if not balls:
+            continue
+        ball = _relative(min(balls, key=lambda o: o.distance))
+        for obj in player.see.objects:
+            if obj.kind != "player" or not obj.kicking or obj.team in (None, ours):
+                continue
+            where = _relative(obj)
+            if where is not None and ball is not None:
+                touched |= bool(np.linalg.norm(where - ball) <= kickable)
+    return touched
+
+
+def _ball_gap(view: TeamView, player: int) -> tuple[float, int] | None:
+    """How far ``player`` is from the ball (its own see, else the nearest teammate's that sees
+    it) and how many cycles old that is; None when nobody sees the ball."""
+    if view.ball_seen[player]:
+        return float(view.ball_distance[player]), int(view.stale[player])
+    seer = set_piece_taker(view, exclude=player)
+    if seer is None:
+        return None
+    gap = float(np.linalg.norm(view.ball_position(seer) - view.position[player]))
+    return gap, int(max(view.stale[seer], view.stale[player]))
+
+
+def near_ball(view: TeamView, player: int) -> bool:
+    """Whether ``player`` could run into the ball by dashing now: within what it covers in
+    the cycles since the see plus two (the dash, then the coast after it) at full speed."""
+    gap = _ball_gap(view, player)
+    if gap is None:
+        return False
+    distance, stale = gap
+    return distance <= _COLLIDE + _PLAYER_SPEED_MAX * (stale + 2)
 
 
 def no_second_touch(
-    commands: Sequence[Command | None],
-    view: TeamView,
-    state: SecondTouch,
-    cycle: int,
-    *,
-    kickable: float = KICKABLE,
+    commands: Sequence[Command | None], view: TeamView, state: SecondTouch
 ) -> list[Command | None]:
-    """``commands`` with the set-piece taker's kick dropped (no command) while the ban of the
-    module docstring lasts; ``state`` is updated (the ban ends when a teammate is within
-    ``kickable`` of the ball, or after ``SECOND_TOUCH_WAIT`` cycles)."""
+    """``commands`` with the banned taker's (``state``, module docstring) replaced by no
+    command: a kick, tackle or catch once it has dashed since its kick, and a dash near the
+    ball (:func:`near_ball`), which could run into it and would make its next touch a fault.
+    Turns and dashes away from the ball's reach go out."""
     out = list(commands)
-    if state.taker is None:
+    taker = state.taker
+    if taker is None or not state.in_play:
         return out
-    others = [i for i in range(len(out)) if i != state.taker]
-    at_ball = any(view.ball_seen[i] and view.ball_distance[i] <= kickable for i in others)
-    if at_ball or cycle - state.since > SECOND_TOUCH_WAIT:
-        state.taker = None
-        return out
-    if isinstance(out[state.taker], Kick):
-        out[state.taker] = None
+    command = out[taker]
+    touches = isinstance(command, _TOUCHES) and state.dashed
+    if touches or (isinstance(command, Dash) and near_ball(view, taker)):
+        out[taker] = None
     return out
 
 
@@ -514,6 +627,10 @@ class MatchRoutines:
         routines applied; (commands, what: "move", "set_piece", "catch" or "policy")."""
         mode = self.previous_mode
         view = team_view(memory, self.side)
+        touched = touched_by_another(
+            cycle, self.side, self.n, self.touch, memory.team_names, kickable=self.kickable
+        )
+        self.touch.observe(mode, touched)
         policy = list(commands)
         out, what = apply_rules(
             policy,
@@ -529,14 +646,17 @@ class MatchRoutines:
         if what == "set_piece":
             for i, (mine, routine) in enumerate(zip(policy, out, strict=True)):
                 if isinstance(routine, Kick) and routine is not mine:
-                    self.touch.taker, self.touch.since = i, self.cycles
+                    self.touch.start(i, mode)
         busy = out[0] is not policy[0]  # a routine's command
         out, _ = guard_goal(out, view, mode, self.side, goalie_busy=busy)
-        if what == "policy":
-            out = no_second_touch(out, view, self.touch, self.cycles, kickable=self.kickable)
+        if what in ("policy", "catch"):
+            out = no_second_touch(out, view, self.touch)
+            if what == "catch" and not isinstance(out[0], Catch):
+                what = "policy"  # the goalie took the set piece and has dashed since
         self.scripted = [mine is not sent for mine, sent in zip(policy, out, strict=True)]
         stamina, capacity = staminas(cycle, self.side, self.n)
         out = pace_dashes(out, stamina, capacity, int(cycle.server_time))
+        self.touch.sent(out)
         if what == "catch":
             self.catches += 1
             self.last_catch = self.cycles

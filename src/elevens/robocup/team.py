@@ -30,6 +30,7 @@ from elevens.robocup.actions import ActionScaling, actions_to_commands
 from elevens.robocup.client import Cycle, RoboCupClient, ServerDied
 from elevens.robocup.env import (
     RoboCupConfig,
+    ball_bearings,
     command_summary,
     kickable_distance,
     robocup_env_params,
@@ -127,13 +128,19 @@ class RoboCupTeam:
         return jax.tree.map(lambda leaf: leaf[side], obs)
 
     def _commands(
-        self, actions: Any, ball_distance: np.ndarray, kickable: float, scaling: ActionScaling
+        self, actions: Any, ball_distance: np.ndarray, kickable: float, scaling: ActionScaling,
+        ball_bearing: np.ndarray | None = None,
     ) -> tuple[np.ndarray, list[Command | None]]:
         """The policy's actions -> (the (move, rot) its observations carry next, one command
-        per player): the "sim" rule for (move, rot), the thesis's table 4.1 for 12 values."""
+        per player): the "sim" rule for (move, rot), the thesis's table 4.1 for 12 values
+        (a kick out of reach becomes a dash towards the ball; ``ball_bearing`` NaN or None:
+        where the player did not see it in its view cone)."""
         values = np.clip(np.asarray(actions, np.float32), -1.0, 1.0)
         if self.player.actions == 12:
-            sent = actions_to_commands(values, scaling)
+            sent = actions_to_commands(
+                values, scaling, ball_distance=ball_distance, ball_bearing=ball_bearing,
+                kickable=kickable,
+            )
             last = np.array([command_summary(c, scaling) for c in sent], np.float32)
             return last, list(sent)
         sent = sim_actions_to_commands(
@@ -232,8 +239,10 @@ class RoboCupTeam:
                 key, act_key = jax.random.split(key)
                 obs = self._observation(memory, side, clock, last)
                 carry, actions = self.player.act(carry, obs, act_key)
-                last, commands = self._commands(actions, memory.ball_distance[side], kickable,
-                                                scaling)
+                last, commands = self._commands(
+                    actions, memory.ball_distance[side], kickable, scaling,
+                    ball_bearings(memory)[side],
+                )
                 if self.rules:
                     commands, _ = routines.apply(commands, memory, cycle)
                 else:

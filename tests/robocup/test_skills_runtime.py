@@ -16,15 +16,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-from elevens.robocup.server import ServerAddress
 from elevens.robocup.skills import skills_policy
 from elevens.robocup.skills.naive import skills_naive
-from elevens.robocup.skills.proxy import (
-    ProxyNotFound,
-    find_proxy,
-    play_skills_team,
-    proxy_command,
-)
+from elevens.robocup.skills.proxy import ProxyNotFound, find_proxy, proxy_command
 from elevens.robocup.skills.runtime import DecisionServer
 from tests.robocup.fake_proxy import OURS, FakeTeam, Scene
 
@@ -137,8 +131,8 @@ def test_a_player_that_does_not_ask_delays_the_batch_only_by_the_gather_time() -
 
 @pytest.mark.parametrize("fail", [False, True])
 def test_a_slow_or_failing_decision_gets_the_default_in_time(fail: bool) -> None:
-    decide = Counting(delay_s=0.0 if fail else 0.6, fail=fail)
-    with DecisionServer(decide, deadline_s=0.08, gather_s=0.01) as server:
+    decide = Counting(delay_s=0.0 if fail else 0.8, fail=fail)
+    with DecisionServer(decide, deadline_s=0.15, gather_s=0.1) as server:
         team = FakeTeam(server.port)
         try:
             answers, trips = team.cycle(Scene(ball=(10.0, 0.0)))
@@ -146,11 +140,12 @@ def test_a_slow_or_failing_decision_gets_the_default_in_time(fail: bool) -> None
             team.close()
         stats = server.stats()
     assert len(answers) == 11
-    assert max(trips) < 0.4  # never the 0.6 s decision
+    assert max(trips) < 0.6  # never the 0.8 s decision
     for answer in answers.values():
         assert _body(answer) == "body_turn_to_ball"  # nobody has the ball
         assert _flags(answer) == (False,) * 5  # the proxy's reflexes fill in
-    assert stats.defaults == 11 and stats.errors == int(fail)
+    assert stats.defaults == 11
+    assert stats.errors == (len(decide.batches) if fail else 0) and stats.errors >= int(fail)
 
 
 def test_real_time_requests_spread_over_a_cycle_make_one_batch() -> None:
@@ -190,11 +185,13 @@ def test_a_missing_proxy_is_one_line_naming_how_to_build_it(tmp_path: Path) -> N
     message = str(error.value)
     assert "\n" not in message and str(tmp_path) in message
     assert "soccer-simulation-proxy" in message and "ELEVENS_SKILLS_PROXY" in message
+    assert proxy_command(tmp_path, 5000).endswith("--rpc-port 5000 --rpc-type thrift -C")
+    assert " -C" not in proxy_command(tmp_path, 5000, coach=True)
 
 
 def _stand_in_proxy(folder: Path, cycles: int) -> Path:
     """A proxy folder whose start.sh runs the fake team (in its own process) instead of the
-    eleven C++ players, with the arguments elevens gives the real one."""
+    eleven C++ players, recording the arguments elevens gives the real one."""
     script = Path(__file__).with_name("fake_proxy.py")
     start = folder / "start.sh"
     start.write_text(
@@ -209,20 +206,30 @@ def _stand_in_proxy(folder: Path, cycles: int) -> Path:
     return folder
 
 
-def test_a_skills_team_starts_its_players_and_reports_latency(tmp_path: Path) -> None:
-    folder = _stand_in_proxy(tmp_path, cycles=15)
-    assert find_proxy(folder) == folder.resolve()
-    result = play_skills_team(
-        skills_naive, ServerAddress.from_port(6123), "elevens", proxy=folder,
-        deadline_s=2.0, gather_s=1.0,
+def test_the_command_plays_the_team_and_prints_its_report(tmp_path: Path) -> None:
+    """elevens robocup skills-team starts the decision server and the players (start.sh with
+    the server's and the decision server's addresses), plays until they leave, and prints
+    the latency report as JSON (the line elevens robocup match reads)."""
+    import json
+    import os
+    import subprocess
+
+    folder = _stand_in_proxy(tmp_path, cycles=5)
+    src = str(Path(__file__).resolve().parents[2] / "src")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([src, os.environ.get("PYTHONPATH", "")])}
+    done = subprocess.run(
+        [sys.executable, "-m", "elevens", "robocup", "skills-team", "--proxy", str(folder),
+         "--port", "6200", "--team-name", "skills", "--json"],
+        capture_output=True, text=True, env=env, timeout=120,
     )
+    assert done.returncode == 0, done.stderr
+    report = json.loads(done.stdout.strip().splitlines()[-1])
+    assert report["team"] == "skills" and report["ended"] == "players left"
+    stats = report["stats"]
+    assert (stats["requests"], stats["batches"], stats["defaults"]) == (55, 5, 0)
+    assert stats["mean_batch"] == 11.0 and stats["latency_ms_p99"] > 0.0
     args = (folder / "args").read_text().split()
-    assert args[:6] == ["-h", "127.0.0.1", "-p", "6123", "-P", "6125"]
-    assert args[args.index("--rpc-type") + 1] == "thrift" and "-C" in args
-    assert args[args.index("-t") + 1] == "elevens"
-    stats = result.stats
-    assert (stats["requests"], stats["batches"], stats["defaults"]) == (165, 15, 0)
-    assert stats["mean_batch"] == 11.0
-    out = (folder / "out").read_text()
-    assert '"requests": 165' in out
-    assert "--rpc-port" in proxy_command(folder, 5000) and proxy_command(folder, 1).endswith(" -C")
+    assert args[:6] == ["-h", "127.0.0.1", "-p", "6200", "-P", "6202"]
+    assert args[args.index("-t") + 1] == "skills" and "-C" in args
+    assert args[args.index("--rpc-type") + 1] == "thrift"
+    assert '"requests": 55' in (folder / "out").read_text()  # the fake team's own count

@@ -47,8 +47,11 @@ def skills_team(args: RoboCupSkillsTeamArgs) -> None:
     # Bad input first, in one line each: the team, its name, the proxy.
     decide = skills_policy(args.skills)
     InitPlayer(args.team_name)
-    if not 1 <= args.players <= 11:
-        raise ValueError(f"--players {args.players} (allowed: 1..11)")
+    if args.gather_ms >= args.deadline_ms:
+        raise ValueError(
+            f"--gather-ms {args.gather_ms:g} is invalid: it must be below --deadline-ms "
+            f"{args.deadline_ms:g}"
+        )
     find_proxy(args.proxy)
     result = play_skills_team(
         decide, ServerAddress.from_port(args.port, args.host), args.team_name,
@@ -60,9 +63,9 @@ def skills_team(args: RoboCupSkillsTeamArgs) -> None:
     else:
         s = result.stats
         print(
-            f"{args.team_name} ({args.skills}): {s['requests']} requests in {s['batches']} "
-            f"batches, {s['defaults']} defaults; latency p50 {s['latency_ms_p50']:.1f} ms, "
-            f"p99 {s['latency_ms_p99']:.1f} ms"
+            f"{args.team_name} ({args.skills}, {result.ended}): {s['requests']} requests in "
+            f"{s['batches']} batches, {s['defaults']} defaults; latency p50 "
+            f"{s['latency_ms_p50']:.1f} ms, p99 {s['latency_ms_p99']:.1f} ms"
         )
 
 

@@ -69,6 +69,7 @@ def proxy_command(folder: Path, rpc_port: int, *, coach: bool = False,
 @dataclasses.dataclass(frozen=True)
 class SkillsTeamResult:
     team: str
+    ended: str  # "players left" (the game ended) or "interrupted" (Ctrl-C, SIGTERM)
     wall_s: float
     stats: dict[str, Any]  # the decision server's RuntimeStats
 
@@ -103,7 +104,8 @@ def play_skills_team(
     on_start: Callable[[DecisionServer], None] | None = None,
 ) -> SkillsTeamResult:
     """Run the decision server and the proxy's players against the rcssserver at
-    ``address`` until every player process has exited (the game ended) or Ctrl-C. With the
+    ``address`` until every player process has exited (the game ended) or Ctrl-C / SIGTERM
+    (as ``elevens robocup match`` stops a team), then stop the players and report. With the
     server's log, waits until all ``players`` are in."""
     folder = find_proxy(proxy)
     start = time.monotonic()
@@ -113,12 +115,16 @@ def play_skills_team(
         if on_start is not None:
             on_start(server)
         proc = start_team(proxy_command(folder, server.port, coach=coach), address, team, output)
+        ended = "players left"
         try:
             if server_log is not None:
                 wait_connected(server_log, team, players, proc, output, connect_timeout_s)
             while _group_alive(proc):
                 time.sleep(0.5)
+        except KeyboardInterrupt:
+            ended = "interrupted"  # still a report: a match stops its teams this way
         finally:
             stop_team(proc)
         stats = server.stats().as_dict()
-    return SkillsTeamResult(team=team, wall_s=time.monotonic() - start, stats=stats)
+    return SkillsTeamResult(team=team, ended=ended, wall_s=time.monotonic() - start,
+                            stats=stats)

@@ -39,7 +39,7 @@ __all__ = ["Decide", "DecisionServer", "RuntimeStats"]
 Decide = Callable[[Sequence[Any]], Sequence[Any]]
 
 _log = logging.getLogger(__name__)
-_PLAYER, _COACH = 0, 1
+_PLAYER = 0  # the proxy's AgentType of a player (the coach and trainer are 1 and 2)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -154,7 +154,7 @@ class DecisionServer:
         self._lock = threading.Condition()
         self._pending: list[_Request] = []
         self._decided: dict[tuple[int, int], set[int]] = {}
-        self._connected = [0, 0]
+        self._connected = [0, 0]  # players, others (the coach)
         self._next_id = 0
         self._closed = False
         self._threads: list[threading.Thread] = []
@@ -233,14 +233,14 @@ class DecisionServer:
 
     def _register(self, kind: int) -> int:
         with self._lock:
-            self._connected[kind == _COACH] += 1
+            self._connected[0 if kind == _PLAYER else 1] += 1
             self._next_id += 1
             self._lock.notify_all()
             return self._next_id
 
     def _unregister(self, kind: int) -> None:
         with self._lock:
-            self._connected[kind == _COACH] -= 1
+            self._connected[0 if kind == _PLAYER else 1] -= 1
             self._lock.notify_all()
 
     # ---- batching ----

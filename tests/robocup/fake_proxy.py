@@ -11,11 +11,10 @@ it skips the proxy's.
 from __future__ import annotations
 
 import dataclasses
-import tempfile
+import io
 import threading
 import time
 from collections.abc import Sequence
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -50,9 +49,7 @@ def sender_protocol() -> Any:
     for head, fields in _EXTRA.items():
         assert head in text, head
         text = text.replace(head, head + "\n  " + "\n  ".join(fields), 1)
-    path = Path(tempfile.mkdtemp()) / "fake_proxy.thrift"
-    path.write_text(text)
-    return thriftpy2.load(str(path), module_name="fake_proxy_thrift")
+    return thriftpy2.load_fp(io.StringIO(text), module_name="fake_proxy_thrift")
 
 
 FAKE = sender_protocol()

@@ -148,6 +148,23 @@ def test_a_slow_or_failing_decision_gets_the_default_in_time(fail: bool) -> None
     assert stats.errors == (len(decide.batches) if fail else 0) and stats.errors >= int(fail)
 
 
+def test_requests_answered_by_the_default_are_not_decided_late() -> None:
+    """A decision that overruns does not pile up: the next cycle's requests, answered by the
+    default while it ran, are dropped instead of decided after their time."""
+    decide = Counting(delay_s=0.5)
+    with DecisionServer(decide, deadline_s=0.1, gather_s=0.05) as server:
+        team = FakeTeam(server.port)
+        try:
+            for cycle in (1, 2):
+                answers, _ = team.cycle(Scene(cycle=cycle))
+                assert all(_body(a) == "body_turn_to_ball" for a in answers.values())
+            time.sleep(0.8)  # the first decision ends; the second cycle is already answered
+        finally:
+            team.close()
+        stats = server.stats()
+    assert len(decide.batches) == 1 and stats.defaults == 22
+
+
 def test_real_time_requests_spread_over_a_cycle_make_one_batch() -> None:
     decide = Counting()
     with DecisionServer(decide, deadline_s=0.6, gather_s=0.3) as server:

@@ -281,13 +281,16 @@ class DecisionServer:
                     self._lock.wait(wait)
                 if self._closed:
                     return
-                batch, self._pending = self._pending, []
-                for r in batch:
+                for r in self._pending:
                     self._decided.setdefault(r.key, set()).add(r.unum)
+                # Requests answered by the default while an earlier decision ran are dropped.
+                batch = [r for r in self._pending if not r.done.is_set()]
+                self._pending = []
                 if len(self._decided) > 8:  # only the latest cycles matter
                     for key in sorted(self._decided)[:-8]:
                         del self._decided[key]
-            self._run(batch)
+            if batch:
+                self._run(batch)
 
     def _run(self, batch: list[_Request]) -> None:
         start = time.perf_counter()

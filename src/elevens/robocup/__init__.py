@@ -12,6 +12,8 @@
 * :mod:`elevens.robocup.naive` -- the RoboCup naive team of thesis section 6.7.
 * :mod:`elevens.robocup.train` / :mod:`elevens.robocup.play` -- PPO training and matches in the
   server (``elevens robocup ...``).
+* :mod:`elevens.robocup.skills` -- a team that decides in librcsc's skills through the skills
+  proxy (``elevens robocup skills-team``).
 """
 
 from elevens.robocup.actions import (

@@ -32,12 +32,13 @@ from elevens.cli.robocup import (
     RoboCupServeArgs,
     RoboCupTrainArgs,
 )
+from elevens.cli.robocup_skills import RoboCupSkillsTeamArgs
 from elevens.eval.replay import Replay, ReplayError, load_replay, save_replay
 from elevens.train.checkpoint import Checkpointer, CheckpointError
 
 ARG_CLASSES = (
     AnalyzeArgs, CurvesArgs, RenderArgs, TournamentArgs, ViewArgs, RoboCupBenchArgs,
-    RoboCupPlayArgs, RoboCupServeArgs, RoboCupTrainArgs, TrainBenchArgs,
+    RoboCupPlayArgs, RoboCupServeArgs, RoboCupTrainArgs, TrainBenchArgs, RoboCupSkillsTeamArgs,
 )
 NUMERIC_TYPES = ("int", "float")
 FIXTURES = [HealthCheck.function_scoped_fixture]  # tmp_path and capsys serve every example

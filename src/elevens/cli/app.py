@@ -16,6 +16,7 @@ import tyro
 
 from elevens.cli import eval as eval_commands
 from elevens.cli import robocup as robocup_commands
+from elevens.cli import robocup_skills as robocup_skills_commands
 from elevens.cli.bench import TrainBenchArgs, bench_train_command
 from elevens.cli.checks import (
     EXIT_BAD_INPUT,
@@ -147,6 +148,7 @@ COMMANDS: Commands = {
     "bench-train": (TrainBenchArgs, bench_train_command),
     **eval_commands.COMMANDS,
     **robocup_commands.COMMANDS,
+    **robocup_skills_commands.COMMANDS,
 }
 """Every subcommand: name -> (its args dataclass, the function that runs it)."""
 

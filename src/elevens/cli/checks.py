@@ -64,6 +64,8 @@ NUMERIC_RANGES: dict[str, tuple[float, float]] = {
     "process_id": (-1, math.inf),
     "devices": (1, math.inf),
     "minibatch_size": (1, math.inf),
+    "deadline_ms": (1.0, 10_000.0),
+    "gather_ms": (0.1, 10_000.0),
 }
 """Every numeric field of the subcommands' args, by name (tests/test_cli.py checks that none is
 missing). Finer checks that need the game (``--view`` against the players) come later."""

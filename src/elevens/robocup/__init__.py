@@ -16,6 +16,8 @@
   this package registers them with the core.
 * :mod:`elevens.robocup.train` / :mod:`elevens.robocup.play` -- PPO training and matches in the
   server (``elevens robocup ...``).
+* :mod:`elevens.robocup.skills` -- a team that decides in librcsc's skills through the skills
+  proxy (``elevens robocup skills-team``).
 """
 
 from elevens.robocup.actions import (

@@ -1,0 +1,339 @@
+"""The decision server of a skills team: one Thrift server that the team's proxy players all
+call, deciding each cycle's requests in one batched policy call.
+
+Every connection is served by a thread of its own (a proxy player keeps one connection open
+for the whole match). A player's ``GetPlayerActions`` request waits while the cycle's batch
+gathers: the batch is decided as soon as every connected player of the cycle has asked, or
+``gather_s`` after its first request (in real time a slow player must not hold the others
+back), by ONE call of ``decide(states) -> actions`` over all the waiting requests. A request
+whose answer is not ready ``deadline_s`` after it arrived gets :func:`default_actions` (the
+proxy stalls without an answer: it has no timeout of its own); the late decision is then
+dropped. Works the same in synch mode and in real time: batches are formed by arrival, and a
+cycle is only used to know when everyone has asked.
+
+``DecisionServer.stats()`` reports the requests, the batches, the defaults sent and the
+latency from a decoded request to its answer (p50, p99, max).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import logging
+import socket
+import threading
+import time
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+from thriftpy2.thrift import TProcessor
+from thriftpy2.transport import TSocket, TTransportException
+
+from elevens.robocup.skills.space import default_actions
+from elevens.robocup.skills.wire import protocol, protocol_factory, transport_factory
+
+__all__ = ["Decide", "DecisionServer", "RuntimeStats"]
+
+#: The batched policy: the States of the players that asked, to their PlayerActions.
+Decide = Callable[[Sequence[Any]], Sequence[Any]]
+
+_log = logging.getLogger(__name__)
+_PLAYER = 0  # the proxy's AgentType of a player (the coach and trainer are 1 and 2)
+
+
+@dataclasses.dataclass(frozen=True)
+class RuntimeStats:
+    requests: int
+    batches: int
+    defaults: int  # answers that missed the deadline (or whose decision failed)
+    errors: int  # batches whose decide raised
+    mean_batch: float
+    latency_ms_p50: float
+    latency_ms_p99: float
+    latency_ms_max: float
+    decide_ms_p50: float
+    decide_ms_p99: float
+    connected_players: int
+
+    def as_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+class _Request:
+    __slots__ = ("state", "key", "unum", "arrived", "answer", "done")
+
+    def __init__(self, state: Any) -> None:
+        wm = state.world_model
+        self.state = state
+        self.key = (int(wm.cycle or 0), int(wm.stoped_cycle or 0)) if wm is not None else (0, 0)
+        me = None if wm is None else wm.myself
+        self.unum = 0 if me is None else int(me.uniform_number or 0)
+        self.arrived = time.perf_counter()
+        self.answer: Any = None
+        self.done = threading.Event()
+
+
+class _Connection:
+    """The handler of one proxy's connection (the Thrift service's methods)."""
+
+    def __init__(self, server: DecisionServer) -> None:
+        self.server = server
+        self.kind: int | None = None
+
+    def Register(self, request: Any) -> Any:  # noqa: N802 - the protocol's method names
+        m = protocol()
+        self.kind = int(request.agent_type or 0)
+        client_id = self.server._register(self.kind)
+        return m.RegisterResponse(
+            client_id=client_id, agent_type=request.agent_type, team_name=request.team_name,
+            uniform_number=request.uniform_number,
+        )
+
+    def SendServerParams(self, _: Any) -> Any:  # noqa: N802
+        return protocol().Empty()
+
+    def SendPlayerParams(self, _: Any) -> Any:  # noqa: N802
+        return protocol().Empty()
+
+    def SendPlayerType(self, _: Any) -> Any:  # noqa: N802
+        return protocol().Empty()
+
+    def SendInitMessage(self, _: Any) -> Any:  # noqa: N802
+        return protocol().Empty()
+
+    def SendByeCommand(self, _: Any) -> Any:  # noqa: N802
+        self.close()
+        return protocol().Empty()
+
+    def GetPlayerActions(self, state: Any) -> Any:  # noqa: N802
+        return self.server._ask(state)
+
+    def GetCoachActions(self, _: Any) -> Any:  # noqa: N802
+        m = protocol()
+        actions = [m.CoachAction(do_helios_substitute=m.DoHeliosSubstitute())]
+        return m.CoachActions(actions=actions if self.server.coach_substitutes else [])
+
+    def close(self) -> None:
+        if self.kind is not None:
+            self.server._unregister(self.kind)
+            self.kind = None
+
+
+class DecisionServer:
+    """Serve ``decide`` to a team's proxy players on ``host:port`` (port 0: a free one, see
+    :attr:`port`). ``players``: how many players of a cycle to wait for at most (the
+    connected players, when fewer are connected). Start with :meth:`start`, stop with
+    :meth:`close`, or use it as a context manager."""
+
+    def __init__(
+        self,
+        decide: Decide,
+        host: str = "127.0.0.1",
+        port: int = 0,
+        *,
+        players: int = 11,
+        deadline_s: float = 0.040,
+        gather_s: float = 0.015,
+        coach_substitutes: bool = True,
+    ) -> None:
+        if not 0.0 < gather_s < deadline_s:
+            raise ValueError(
+                f"gather_s {gather_s} and deadline_s {deadline_s} "
+                f"(allowed: 0 < gather_s < deadline_s)"
+            )
+        if not 1 <= players <= 11:
+            raise ValueError(f"players {players} (allowed: 1..11)")
+        self.decide = decide
+        self.players = players
+        self.deadline_s = deadline_s
+        self.gather_s = gather_s
+        self.coach_substitutes = coach_substitutes
+        self._listener = socket.create_server((host, port), backlog=32)
+        self.host, self.port = self._listener.getsockname()[:2]
+        self._lock = threading.Condition()
+        self._pending: list[_Request] = []
+        self._decided: dict[tuple[int, int], set[int]] = {}
+        self._connected = [0, 0]  # players, others (the coach)
+        self._next_id = 0
+        self._closed = False
+        self._threads: list[threading.Thread] = []
+        self._socks: set[socket.socket] = set()
+        self._latency: list[float] = []
+        self._decide_s: list[float] = []
+        self._batches = 0
+        self._batch_sizes = 0
+        self._defaults = 0
+        self._errors = 0
+
+    # ---- lifecycle ----
+
+    def start(self) -> DecisionServer:
+        for target, name in ((self._accept_loop, "accept"), (self._decide_loop, "decide")):
+            t = threading.Thread(target=target, name=f"skills-{name}", daemon=True)
+            t.start()
+            self._threads.append(t)
+        return self
+
+    def close(self) -> None:
+        with self._lock:
+            self._closed = True
+            self._lock.notify_all()
+        with contextlib.suppress(OSError):
+            self._listener.shutdown(socket.SHUT_RDWR)
+        self._listener.close()
+        with self._lock:
+            socks = list(self._socks)
+        for sock in socks:  # wakes the connection threads blocked in a read
+            with contextlib.suppress(OSError):
+                sock.shutdown(socket.SHUT_RDWR)
+        for t in self._threads:
+            t.join(timeout=2.0)
+
+    def __enter__(self) -> DecisionServer:
+        return self.start()
+
+    def __exit__(self, *_: object) -> None:
+        self.close()
+
+    # ---- connections ----
+
+    def _accept_loop(self) -> None:
+        while not self._closed:
+            try:
+                sock, _ = self._listener.accept()
+            except OSError:
+                return
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            with self._lock:
+                self._socks.add(sock)
+            t = threading.Thread(target=self._serve, args=(sock,), daemon=True,
+                                 name="skills-connection")
+            t.start()
+
+    def _serve(self, sock: socket.socket) -> None:
+        client = TSocket()
+        client.set_handle(sock)
+        trans = transport_factory().get_transport(client)
+        prot = protocol_factory().get_protocol(trans)
+        connection = _Connection(self)
+        processor = TProcessor(protocol().Game, connection)
+        try:
+            while not self._closed:
+                processor.process(prot, prot)
+        except TTransportException:
+            pass  # the proxy went away
+        except Exception:  # one bad connection must not take the team down
+            _log.exception("a proxy connection failed")
+        finally:
+            connection.close()
+            trans.close()
+            with self._lock:
+                self._socks.discard(sock)
+
+    def _register(self, kind: int) -> int:
+        with self._lock:
+            self._connected[0 if kind == _PLAYER else 1] += 1
+            self._next_id += 1
+            self._lock.notify_all()
+            return self._next_id
+
+    def _unregister(self, kind: int) -> None:
+        with self._lock:
+            self._connected[0 if kind == _PLAYER else 1] -= 1
+            self._lock.notify_all()
+
+    # ---- batching ----
+
+    def _ask(self, state: Any) -> Any:
+        request = _Request(state)
+        with self._lock:
+            self._pending.append(request)
+            self._lock.notify_all()
+        if not request.done.wait(self.deadline_s - (time.perf_counter() - request.arrived)):
+            with self._lock:
+                if not request.done.is_set():  # the decision may land while we take the lock
+                    request.answer = default_actions(state)
+                    request.done.set()
+                    self._defaults += 1
+        with self._lock:
+            self._latency.append(time.perf_counter() - request.arrived)
+        return request.answer
+
+    def _batch_ready(self, now: float) -> bool:
+        if not self._pending:
+            return False
+        if now - self._pending[0].arrived >= self.gather_s:
+            return True
+        key = max(r.key for r in self._pending)
+        asked = self._decided.get(key, set()) | {r.unum for r in self._pending if r.key == key}
+        expected = min(self.players, max(self._connected[0], 1))
+        return len(asked) >= expected
+
+    def _decide_loop(self) -> None:
+        while True:
+            with self._lock:
+                while not self._closed and not self._batch_ready(time.perf_counter()):
+                    wait = None
+                    if self._pending:
+                        wait = max(self.gather_s - (time.perf_counter()
+                                                    - self._pending[0].arrived), 0.0)
+                    self._lock.wait(wait)
+                if self._closed:
+                    return
+                for r in self._pending:
+                    self._decided.setdefault(r.key, set()).add(r.unum)
+                # Requests answered by the default while an earlier decision ran are dropped.
+                batch = [r for r in self._pending if not r.done.is_set()]
+                self._pending = []
+                if len(self._decided) > 8:  # only the latest cycles matter
+                    for key in sorted(self._decided)[:-8]:
+                        del self._decided[key]
+            if batch:
+                self._run(batch)
+
+    def _run(self, batch: list[_Request]) -> None:
+        start = time.perf_counter()
+        try:
+            answers = list(self.decide([r.state for r in batch]))
+            if len(answers) != len(batch):
+                raise ValueError(f"decide answered {len(answers)} of {len(batch)} requests")
+        except Exception:
+            _log.exception("decide failed; the batch gets the default actions")
+            answers = [None] * len(batch)
+            with self._lock:
+                self._errors += 1
+        elapsed = time.perf_counter() - start
+        with self._lock:
+            self._batches += 1
+            self._batch_sizes += len(batch)
+            self._decide_s.append(elapsed)
+            for r, answer in zip(batch, answers, strict=True):
+                if r.done.is_set():
+                    continue  # it got the default already
+                if answer is None:
+                    answer = default_actions(r.state)
+                    self._defaults += 1
+                r.answer = answer
+                r.done.set()
+
+    # ---- reports ----
+
+    def stats(self) -> RuntimeStats:
+        with self._lock:
+            lat = np.asarray(self._latency) * 1e3
+            dec = np.asarray(self._decide_s) * 1e3
+            requests, batches = len(self._latency), self._batches
+
+            def pct(a: np.ndarray, q: float) -> float:
+                return float(np.percentile(a, q)) if a.size else float("nan")
+
+            return RuntimeStats(
+                requests=requests, batches=batches, defaults=self._defaults,
+                errors=self._errors,
+                mean_batch=self._batch_sizes / batches if batches else 0.0,
+                latency_ms_p50=pct(lat, 50), latency_ms_p99=pct(lat, 99),
+                latency_ms_max=float(lat.max()) if lat.size else float("nan"),
+                decide_ms_p50=pct(dec, 50), decide_ms_p99=pct(dec, 99),
+                connected_players=self._connected[0],
+            )

@@ -1,0 +1,116 @@
+"""skills_naive's choices in scenes where the right one is clear, and the decision space's
+mapping to the proxy's skills."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from elevens.robocup.skills.naive import FORMATION, skills_naive_decisions, slot_targets
+from elevens.robocup.skills.observe import Observation, observe
+from elevens.robocup.skills.space import Decisions, Kind, pass_speed, to_player_actions
+from tests.robocup.fake_proxy import OURS, THEIRS, Scene, state
+
+FAR_OPPONENTS = np.array([[50.0, 0.0]] + [[40.0, -30.0 + 6.0 * k] for k in range(10)],
+                         np.float32)
+
+
+def _holder_scene(holder_at: tuple[float, float], theirs: np.ndarray,
+                  forward: dict[int, tuple[float, float]] | None = None) -> Scene:
+    """Player 6 has the ball at ``holder_at``; every teammate not in ``forward`` stays well
+    behind it."""
+    ours = np.stack([np.array([-40.0, -25.0 + 5.0 * k]) for k in range(11)]).astype(np.float32)
+    ours[5] = holder_at
+    for unum, xy in (forward or {}).items():
+        ours[unum - 1] = xy
+    ball = (holder_at[0] + 0.5, holder_at[1])
+    return Scene(ours=ours, theirs=theirs.astype(np.float32), ball=ball, kickable=6)
+
+
+def _decide(scene: Scene, *unums: int) -> tuple[Observation, Decisions]:
+    obs = observe([state(scene, u) for u in unums])
+    return obs, skills_naive_decisions(obs)
+
+
+def test_passes_forward_to_the_open_teammate_not_the_covered_one() -> None:
+    theirs = FAR_OPPONENTS.copy()
+    theirs[1] = (8.0, 4.0)  # on the lane to player 11
+    scene = _holder_scene((0.0, 0.0), theirs, forward={10: (15.0, -8.0), 11: (15.0, 8.0)})
+    obs, dec = _decide(scene, 6)
+    assert (dec.kind[0], dec.index[0]) == (Kind.PASS, 10)
+    kick = to_player_actions(dec, obs)[0].actions[0].body_smart_kick
+    assert (kick.target_point.x, kick.target_point.y) == (15.0, -8.0)
+    assert kick.first_speed == pytest.approx(float(pass_speed(np.hypot(15.0, 8.0))))
+    assert 1.0 < kick.first_speed < 3.0
+
+
+def test_dribbles_at_goal_with_no_one_to_pass_to() -> None:
+    obs, dec = _decide(_holder_scene((0.0, 0.0), FAR_OPPONENTS), 6)
+    assert (dec.kind[0], dec.index[0]) == (Kind.DRIBBLE, 0)  # straight at their goal
+    dribble = to_player_actions(dec, obs)[0].actions[0].body_dribble
+    assert (dribble.target_point.x, dribble.target_point.y) == (8.0, 0.0)
+
+
+def test_holds_when_every_forward_path_is_blocked() -> None:
+    theirs = FAR_OPPONENTS.copy()
+    for k, angle in enumerate((0, 45, 90, -90, -45)):
+        a = np.radians(angle)
+        theirs[1 + k] = (1.6 * np.cos(a), 1.6 * np.sin(a))
+    obs, dec = _decide(_holder_scene((0.0, 0.0), theirs), 6)
+    assert dec.kind[0] == Kind.HOLD
+    hold = to_player_actions(dec, obs)[0].actions[0].body_hold_ball
+    assert (hold.kick_target_point.x, hold.kick_target_point.y) == pytest.approx((1.6, 0.0))
+
+
+def test_shoots_near_goal_away_from_the_goalie() -> None:
+    theirs = FAR_OPPONENTS.copy()
+    theirs[0] = (50.0, 3.0)
+    obs, dec = _decide(_holder_scene((40.0, 0.0), theirs), 6)
+    assert dec.kind[0] == Kind.SHOOT
+    assert dec.point[0, 0] == 52.5 and -7.0 < dec.point[0, 1] < 0.0
+
+
+def test_slots_slide_with_the_ball_and_stay_onside() -> None:
+    unum = np.arange(1, 12)
+    ahead = slot_targets(unum, np.tile([30.0, 10.0], (11, 1)), np.full(11, 20.0, np.float32))
+    behind = slot_targets(unum, np.tile([-30.0, -10.0], (11, 1)), np.full(11, 0.0, np.float32))
+    assert (ahead[:, 0] <= 19.0).all() and (ahead[:, 0] > behind[:, 0]).all()
+    assert (ahead[1:, 1] > behind[1:, 1]).all()
+    slid = FORMATION + [[-18.0, -3.0]]
+    slid[:, 0] = np.maximum(slid[:, 0], -48.0)  # never behind the goal line
+    assert np.allclose(behind, slid)
+
+
+def test_tackles_an_opponent_on_the_ball_when_likely_to_win_it() -> None:
+    obs, _ = _decide(Scene(ball=(-20.0, 0.0)), 3, 4)
+    obs = dataclasses.replace(obs, kickable_opp=np.array([True, True]),
+                              tackle_probability=np.array([0.9, 0.2], np.float32))
+    kinds = skills_naive_decisions(obs).kind
+    assert kinds[0] == Kind.TACKLE and kinds[1] != Kind.TACKLE
+
+
+def test_set_pieces_and_the_goalie_use_the_ready_behaviours() -> None:
+    obs, dec = _decide(Scene(mode=6, ball=(52.0, 34.0)), 1, 5, 10)  # a corner kick
+    assert list(dec.kind) == [Kind.GOALIE, Kind.SET_PLAY, Kind.SET_PLAY]
+    answers = to_player_actions(dec, obs)
+    assert answers[1].actions[0].helios_set_play is not None
+    assert not answers[1].ignore_doIntention  # set plays keep the proxy's reflexes
+
+
+def test_bad_decisions_are_refused_in_one_line() -> None:
+    obs = observe([state(Scene(), 2)])
+    with pytest.raises(ValueError, match=r"PASS index 12 \(allowed: 1..11\)"):
+        to_player_actions(Decisions.of(np.array([Kind.PASS]), np.array([12])), obs)
+    with pytest.raises(ValueError, match=r"kind 42 \(allowed: 0..11\)"):
+        to_player_actions(Decisions.of(np.array([42])), obs)
+    with pytest.raises(ValueError, match=r"shapes kind \(2,\)"):
+        to_player_actions(Decisions.of(np.array([0, 0])), obs)
+
+
+def test_observation_slots_by_shirt_number() -> None:
+    obs = observe([state(Scene(), u) for u in (1, 7)])
+    assert list(obs.unum) == [1, 7] and list(obs.goalie) == [True, False]
+    assert obs.mates_valid.all() and obs.opps_valid.all()
+    assert np.allclose(obs.mates[1], OURS) and np.allclose(obs.opps[0], THEIRS)

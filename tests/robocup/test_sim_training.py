@@ -164,3 +164,17 @@ def test_players_a_server_routine_played_leave_the_policy_loss_too() -> None:
     expected = goalie_only.copy()
     expected[0, 1, 2:5] = False
     np.testing.assert_array_equal(played, expected)
+
+
+def test_the_wings_teams_are_known_whatever_was_imported_first() -> None:
+    """The core's team specs read the registries when asked, not when first imported: a process
+    that imported the core's team loading before the wing still finds the wing's teams."""
+    import subprocess
+    import sys
+
+    code = (
+        "import elevens.runs.teams as t; import elevens.robocup; "
+        "print(t.parse_team_spec('rcss_naive').handcrafted, t.parse_team_spec('rcss-gpu').shipped)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["rcss_naive", "rcss-gpu"]

@@ -34,7 +34,12 @@ from elevens.teams.base import Team, TeamPolicy
 from elevens.teams.registry import HANDCRAFTED
 from elevens.teams.trained import shipped_team_names
 
-HANDCRAFTED_NAMES: tuple[str, ...] = tuple(HANDCRAFTED)  # one list of names: teams.registry's
+
+def handcrafted_names() -> tuple[str, ...]:
+    """The handcrafted teams' names (teams.registry's, those games above the core add too)."""
+    return tuple(HANDCRAFTED)
+
+
 NETWORK_TEAM_NAME = "network"
 """The ``NetworkTeam.name`` of every loaded checkpoint. The team is a static argument of the
 compiled match, so equal architectures with equal names share one compile across checkpoints
@@ -62,7 +67,7 @@ class TeamSpec:
 
 
 def _allowed_names() -> str:
-    return ", ".join((*HANDCRAFTED_NAMES, *shipped_team_names()))
+    return ", ".join((*handcrafted_names(), *shipped_team_names()))
 
 
 def parse_team_spec(text: str) -> TeamSpec:
@@ -82,7 +87,7 @@ def parse_team_spec(text: str) -> TeamSpec:
         label, text = head, tail.strip()
         if not text:
             raise ValueError(f"team spec {original!r}: nothing after the label {label!r}")
-    if text in HANDCRAFTED_NAMES:
+    if text in handcrafted_names():
         return TeamSpec(text=original, name=label or text, handcrafted=text)
     if text in shipped_team_names():
         return TeamSpec(text=original, name=label or text, shipped=text)

@@ -27,13 +27,18 @@ class Counting:
     """``skills_naive``, recording each call's batch (shirt numbers), optionally slow or
     failing."""
 
-    def __init__(self, delay_s: float = 0.0, fail: bool = False) -> None:
+    def __init__(self, block: bool = False, fail: bool = False) -> None:
         self.batches: list[list[int]] = []
-        self.delay_s, self.fail = delay_s, fail
+        self.fail = fail
+        # A blocked decision runs until the test releases it: "slow" without a wall clock.
+        self.release, self.finished = threading.Event(), threading.Event()
+        if not block:
+            self.release.set()
 
     def __call__(self, states: Sequence[Any]) -> list[Any]:
         self.batches.append(sorted(s.world_model.myself.uniform_number for s in states))
-        time.sleep(self.delay_s)
+        self.release.wait(30)
+        self.finished.set()
         if self.fail:
             raise RuntimeError("the policy failed")
         return skills_naive(states)
@@ -109,7 +114,7 @@ def test_one_batched_decision_per_cycle_with_latency_recorded(served: Any) -> No
     stats = server.stats()
     assert (stats.requests, stats.batches, stats.defaults, stats.errors) == (110, 10, 0, 0)
     assert stats.mean_batch == 11.0 and stats.connected_players == 11
-    assert 0.0 < stats.latency_ms_p50 <= stats.latency_ms_p99 <= stats.latency_ms_max < 500.0
+    assert 0.0 < stats.latency_ms_p50 <= stats.latency_ms_p99 <= stats.latency_ms_max
 
 
 def test_a_player_that_does_not_ask_delays_the_batch_only_by_the_gather_time() -> None:
@@ -117,10 +122,8 @@ def test_a_player_that_does_not_ask_delays_the_batch_only_by_the_gather_time() -
     with DecisionServer(decide, deadline_s=2.0, gather_s=0.5) as server:
         team = FakeTeam(server.port)
         try:
-            start = time.perf_counter()
             answers, _ = team.cycle(Scene(cycle=3), skip=[7])
-            assert sorted(answers) == [u for u in range(1, 12) if u != 7]
-            assert time.perf_counter() - start >= 0.5  # it waited for player 7, then went on
+            assert sorted(answers) == [u for u in range(1, 12) if u != 7]  # it went on
             late, _ = team.cycle(Scene(cycle=3), skip=[u for u in range(1, 12) if u != 7])
             assert sorted(late) == [7]
         finally:
@@ -131,16 +134,18 @@ def test_a_player_that_does_not_ask_delays_the_batch_only_by_the_gather_time() -
 
 @pytest.mark.parametrize("fail", [False, True])
 def test_a_slow_or_failing_decision_gets_the_default_in_time(fail: bool) -> None:
-    decide = Counting(delay_s=0.0 if fail else 0.8, fail=fail)
+    decide = Counting(block=not fail, fail=fail)
     with DecisionServer(decide, deadline_s=0.15, gather_s=0.1) as server:
         team = FakeTeam(server.port)
         try:
-            answers, trips = team.cycle(Scene(ball=(10.0, 0.0)))
+            answers, _ = team.cycle(Scene(ball=(10.0, 0.0)))
+            # Every player has its answer while the slow decision still runs.
+            assert fail or not decide.finished.is_set()
         finally:
+            decide.release.set()
             team.close()
         stats = server.stats()
     assert len(answers) == 11
-    assert max(trips) < 0.6  # never the 0.8 s decision
     for answer in answers.values():
         assert _body(answer) == "body_turn_to_ball"  # nobody has the ball
         assert _flags(answer) == (False,) * 5  # the proxy's reflexes fill in
@@ -151,14 +156,15 @@ def test_a_slow_or_failing_decision_gets_the_default_in_time(fail: bool) -> None
 def test_requests_answered_by_the_default_are_not_decided_late() -> None:
     """A decision that overruns does not pile up: the next cycle's requests, answered by the
     default while it ran, are dropped instead of decided after their time."""
-    decide = Counting(delay_s=0.5)
+    decide = Counting(block=True)
     with DecisionServer(decide, deadline_s=0.1, gather_s=0.05) as server:
         team = FakeTeam(server.port)
         try:
             for cycle in (1, 2):
                 answers, _ = team.cycle(Scene(cycle=cycle))
                 assert all(_body(a) == "body_turn_to_ball" for a in answers.values())
-            time.sleep(0.8)  # the first decision ends; the second cycle is already answered
+            decide.release.set()  # the first decision ends; the second cycle is already answered
+            assert decide.finished.wait(30)
         finally:
             team.close()
         stats = server.stats()

@@ -474,7 +474,7 @@ def test_a_thesis12_team_plays_the_server_or_its_bodies_only(tmp_path):
         "run.run_dir": str(tmp_path / "run"), "run.init_from": str(out),
         **{f"network.{name}": value for name, value in network.items()},
     })
-    result = train_robocup(config, env_factory=lambda i: KickScoreEnv(1), print_fn=lambda _: None)
+    result = train_robocup(config, env_factory=lambda i: KickScoreEnv(1), progress=False)
     assert result.iterations == 0
     _, expected = load_learner_params(str(out))
     _, started = load_learner_params(str(tmp_path / "run"))

@@ -29,8 +29,8 @@ from elevens.robocup.external import TeamCommandNotFound
 from elevens.robocup.play import load_robocup_team, play_robocup
 from elevens.robocup.train import (
     RoboCupTrainConfig,
+    ServerGames,
     make_robocup_config,
-    play_iteration,
     train_robocup,
 )
 from elevens.runs.errors import RunRefusedError
@@ -147,22 +147,21 @@ def test_the_robocup_config_is_the_simulators_learner_and_run() -> None:
     assert (saved.preset, saved.learner, saved.run) == ("robocup", learner, config.run)
 
 
-def test_play_iteration_packs_a_rollout_like_the_compiled_one(tmp_path: Path) -> None:
+def test_server_games_pack_a_rollout_like_the_compiled_one(tmp_path: Path) -> None:
     config = small_config(tmp_path, **{"env.players_per_team": 2, "env.episode_length": 6})
     trainer = make_learner(config.learner)
     state = trainer.init(jax.random.key(0))
-    from elevens.robocup.train import make_actor
-
     envs = [SimEnv(2), SimEnv(2, restart_at=3)]
-    data, logs = play_iteration(
-        envs, make_actor(trainer.policy), trainer.policy, state.params.policy,
-        state.params.policy, jax.random.key(1), episode_length=6, shaping_active=True, seed=0,
-    )
+    games = ServerGames(config, lambda g: envs[g])
+    with games.open(trainer) as collect:
+        data, row = collect(state, jax.random.key(1))
+    assert all(env.closed for env in envs)
     t = data.transitions
     assert t.obs.self_features.shape == (4, 6, 15)
     assert t.obs.entities.shape == (4, 6, 4, 11)
     assert t.pre_tanh.shape == (4, 6, 2) and t.log_prob.shape == (4, 6)
     assert data.game_global_state.players.shape == (2, 6, 4, 11)
+    assert data.scripted is not None and data.scripted.shape == (4, 6)
     assert np.asarray(data.learner_side).tolist() == [0, 1]
     done, reset = np.asarray(t.done), np.asarray(t.reset)
     # Episode ends: the last step everywhere, and the faked restart in game 1 (players 2, 3).
@@ -170,7 +169,9 @@ def test_play_iteration_packs_a_rollout_like_the_compiled_one(tmp_path: Path) ->
     assert done[2:, 2].all() and not done[2:, [0, 1, 3, 4]].any()
     # Starts: step 0 everywhere, and the step after the restart in game 1.
     assert reset[:, 0].all() and reset[2:, 3].all() and not reset[:2, 1:].any()
-    assert logs[1].restarts == 1 and logs[0].restarts == 0
+    assert games.restarts == 1 and row["robocup/restarts"] == 1.0
+    with (tmp_path / "run" / EPISODES_CSV).open() as f:
+        assert [r["restarts"] for r in csv.DictReader(f)] == ["0", "1"]
     # The learner acted on side 1 in game 1: the actions there are its samples, squashed.
     acted = np.stack(envs[1].actions_seen)[:, 1]  # [T, n, 2]
     np.testing.assert_allclose(acted, np.tanh(np.asarray(t.pre_tanh[2:])).swapaxes(0, 1),
@@ -183,17 +184,13 @@ def test_play_iteration_packs_a_rollout_like_the_compiled_one(tmp_path: Path) ->
 def test_an_external_opponent_leaves_the_learner_on_the_left_and_its_side_unplayed(
     tmp_path: Path,
 ) -> None:
-    config = small_config(tmp_path, **{"env.players_per_team": 2, "env.episode_length": 4})
+    config = small_config(tmp_path, **{"env.players_per_team": 2, "env.episode_length": 4,
+                                       "server.opponent_cmd": "start.sh"})
     trainer = make_learner(config.learner)
     state = trainer.init(jax.random.key(0))
-    from elevens.robocup.train import make_actor
-
     envs = [SimEnv(2), SimEnv(2)]
-    data, _ = play_iteration(
-        envs, make_actor(trainer.policy), trainer.policy, state.params.policy,
-        state.params.policy, jax.random.key(1), episode_length=4, shaping_active=True, seed=0,
-        external_opponent=True,
-    )
+    with ServerGames(config, lambda g: envs[g]).open(trainer) as collect:
+        data, _ = collect(state, jax.random.key(1))
     assert np.asarray(data.learner_side).tolist() == [0, 0]
     for env in envs:
         acted = np.stack(env.actions_seen)  # [T, 2, n, 2]

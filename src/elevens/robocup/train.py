@@ -23,7 +23,7 @@ import csv
 import dataclasses
 import json
 import time
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
@@ -32,7 +32,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from elevens.env.state import Observation
-from elevens.play import NetworkActor, home_sides
+from elevens.play import NetworkActor, home_sides, pick_side, place_sides
 from elevens.robocup.actions import action_mode
 from elevens.runs.layout import RunLayout
 from elevens.runs.loop import Collect, HostGames, TrainResult, train
@@ -44,7 +44,7 @@ from elevens.train.config import (
     make_config,
     validate,
 )
-from elevens.train.learner import make_learner
+from elevens.train.learner import Learner, TrainState, make_learner
 from elevens.train.rollout import Rollout, StepRecord, collected
 
 EPISODE_FIELDS = (
@@ -135,13 +135,8 @@ def _robocup_learner() -> LearnerConfig:
 
 
 ROBOCUP_RUN = RunConfig(
-    iterations=1000,
-    max_minutes=10.0,
-    eval_teams=(),
-    checkpoint_every=5,
-    run_dir="runs/robocup",
-    write_plot=True,
-    write_gif=False,
+    iterations=1000, max_minutes=10.0, eval_teams=(), checkpoint_every=5,
+    run_dir="runs/robocup", write_plot=True, write_gif=False,
 )
 """The host loop's defaults in rcssserver: 10 minutes, no evaluation in the simulator (give
 ``run.eval_teams`` to track the policy there), a checkpoint every 5 iterations."""
@@ -245,169 +240,19 @@ def _default_env_factory(config: RoboCupTrainConfig) -> EnvFactory:
     from elevens.robocup.env import RoboCupConfig, RoboCupEnv
 
     game, server = config.learner.env.game, config.server
-
-    def make(index: int) -> Any:
-        return RoboCupEnv(
-            RoboCupConfig(
-                # The loop ends episodes itself; the env's own limit only has to lie beyond.
-                episode_length=game.episode_length + 1,
-                **{name: getattr(game, name) for name in SERVER_GAME_FIELDS
-                   if name not in ("episode_length", "possession_by")},  # "near", the env's
-                episodes=server.episodes,
-                keep_ball_in_play=server.keep_ball_in_play and server.episodes == "drill",
-                action=action_mode(config.learner.network.actions),
-                rcssserver=server.rcssserver,
-                opponent_cmd=server.opponent_cmd,
-                team_names=(
-                    "elevens_l", server.opponent_name if server.opponent_cmd else "elevens_r"
-                ),
-            )
-        )
-
-    return make
-
-
-def _stack(trees: Sequence[Any]) -> Any:
-    return jax.tree.map(lambda *leaves: np.stack([np.asarray(x) for x in leaves]), *trees)
-
-
-def _pick(tree: Any, sides: np.ndarray) -> Any:
-    """Leaves [G, 2, ...] -> [G, ...]: team ``sides[g]`` of game g."""
-    index = np.arange(len(sides))
-    return jax.tree.map(lambda leaf: leaf[index, sides], tree)
-
-
-def make_actor(policy: Any, per_game: bool = False) -> Callable[..., Any]:
-    """Jitted: (params, carry, obs [G, n], reset bool[G, n], key) ->
-    (carry, pre_tanh f32[G, n, A], log_prob f32[G, n], action f32[G, n, A]), A the policy's
-    2 or 12 actions: the simulator's ``elevens.play.NetworkActor``, stepped from the host.
-    ``per_game``: params with a leading [G] axis, one network per game (a league's
-    snapshots)."""
-
-    @jax.jit
-    def act(params: Any, carry: Any, obs: Observation, reset: jax.Array, key: jax.Array) -> Any:
-        actor = NetworkActor(policy, params, per_game=per_game)
-        carry, action, sample = actor.act(carry, obs, reset, key)
-        return carry, sample.pre_tanh, sample.log_prob, action
-
-    return act
-
-
-@dataclasses.dataclass
-class _GameLog:
-    goals_for: int = 0
-    goals_against: int = 0
-    restarts: int = 0
-    missed: int = 0
-    malformed: int = 0
-    ball_returned: int = 0
-    first_time: int | None = None
-    last_time: int | None = None
-
-    @property
-    def server_cycles(self) -> int:
-        if self.first_time is None or self.last_time is None:
-            return 0
-        return self.last_time - self.first_time + 1
-
-    def add(self, info: Mapping[str, Any], side: int) -> bool:
-        """Count one step's ``info`` for the learner on ``side``; True if the server restarted
-        (the episode was cut short)."""
-        goals = np.asarray(info["goals"])
-        self.goals_for += int(goals[side])
-        self.goals_against += int(goals[1 - side])
-        self.missed += int(info.get("missed", 0))
-        self.malformed += int(info.get("malformed", 0))
-        self.ball_returned += int(bool(info.get("ball_returned", False)))
-        if "server_time" in info:
-            if self.first_time is None:
-                self.first_time = int(info["server_time"])
-            self.last_time = int(info["server_time"])
-        restarted = bool(info.get("restarted", False))
-        self.restarts += int(restarted)
-        return restarted
-
-
-def play_iteration(
-    envs: Sequence[Any],
-    act: Callable[..., Any],
-    policy: Any,
-    learner_params: Any,
-    opponent_params: Any,
-    key: jax.Array,
-    *,
-    episode_length: int,
-    shaping_active: bool,
-    seed: int,
-    pool: ThreadPoolExecutor | None = None,
-    external_opponent: bool = False,
-    opponent_act: Callable[..., Any] | None = None,
-) -> tuple[Rollout, list[_GameLog]]:
-    """One episode of every game (learner against opponent) packed as a ``Rollout``. With an
-    ``external_opponent`` the learner plays the left side of every game and the opponent's
-    actions are not computed (the other program plays them). ``opponent_act``: how the
-    opponent acts when it differs from ``act`` (one network per game: a league's)."""
-    num_games, n = len(envs), envs[0].players_per_team
-    sides = np.zeros(num_games, np.int32) if external_opponent else home_sides(num_games)
-    index = np.arange(num_games)
-
-    def run(fn: Callable[[int], Any]) -> list[Any]:
-        return [fn(g) for g in range(num_games)] if pool is None else list(pool.map(fn, index))
-
-    states, observations = map(list, zip(*run(lambda g: envs[g].reset(seed=seed + g)), strict=True))
-    initial_carry = learner_carry = opponent_carry = policy.initial_carry((num_games, n))
-    reset = np.ones(num_games, bool)
-    logs = [_GameLog() for _ in range(num_games)]
-    records: list[StepRecord] = []
-    step_keys = jax.random.split(key, (episode_length, 2))
-    for t in range(episode_length):
-        obs = _stack(observations)  # leading [G, 2, n]
-        views = _stack([env.global_state(s) for env, s in zip(envs, states, strict=True)])
-        learner_obs = _pick(obs, sides)
-        player_reset = np.broadcast_to(reset[:, None], (num_games, n))
-        learner_carry, pre_tanh, log_prob, learner_action = act(
-            learner_params, learner_carry, learner_obs, player_reset, step_keys[t, 0]
-        )
-        learner_action = np.asarray(learner_action)  # [G, n, 2 or 12]
-        actions = np.zeros((num_games, 2, n, learner_action.shape[-1]), np.float32)
-        actions[index, sides] = learner_action
-        if not external_opponent:
-            opponent_carry, _, _, opponent_action = (opponent_act or act)(
-                opponent_params, opponent_carry, _pick(obs, 1 - sides), player_reset,
-                step_keys[t, 1],
-            )
-            actions[index, 1 - sides] = np.asarray(opponent_action)
-        results = run(lambda g, actions=actions: envs[g].step(actions[g]))
-        infos = [info for *_, info in results]
-        by_game = list(zip(infos, sides, strict=True))
-        states, observations = [r[0] for r in results], [r[1] for r in results]
-        # The learner's side of each game's info, stacked over games.
-        mine = {
-            name: np.stack([np.asarray(info[name])[side] for info, side in by_game])
-            for name in ("goal_reward", "ball_shaping", "approach_shaping",
-                         "possession_shaping", "holder", "scripted")
-        }
-        shaping = mine["ball_shaping"] + mine["approach_shaping"] + mine["possession_shaping"]
-        # A restart cuts the episode short; a fresh one starts next step.
-        done = np.array(
-            [log.add(info, side) for log, (info, side) in zip(logs, by_game, strict=True)], bool
-        )
-        done |= t == episode_length - 1
-        records.append(StepRecord(
-            obs=learner_obs, global_state=_pick(views, sides), pre_tanh=np.asarray(pre_tanh),
-            log_prob=np.asarray(log_prob),
-            reward=(mine["goal_reward"] + (shaping if shaping_active else 0.0)).astype(
-                np.float32),
-            done=done, truncated=done, reset=reset, goal_reward=mine["goal_reward"],
-            ball_shaping=mine["ball_shaping"], approach_shaping=mine["approach_shaping"],
-            possession_shaping=mine["possession_shaping"],
-            holder=mine["holder"].astype(np.float32), scripted=mine["scripted"].astype(bool),
-        ))
-        reset = done  # the policy zeroes those rows' memories itself (RecurrentCore)
-    goals = [np.asarray([getattr(log, name) for log in logs], np.int32)
-             for name in ("goals_for", "goals_against")]
-    rollout = collected(_stack(records), *goals, jnp.asarray(sides), initial_carry, n)
-    return rollout, logs
+    env_config = RoboCupConfig(
+        # The loop ends episodes itself; the env's own limit only has to lie beyond.
+        episode_length=game.episode_length + 1,
+        **{name: getattr(game, name) for name in SERVER_GAME_FIELDS
+           if name not in ("episode_length", "possession_by")},  # "near", the env's
+        episodes=server.episodes,
+        keep_ball_in_play=server.keep_ball_in_play and server.episodes == "drill",
+        action=action_mode(config.learner.network.actions),
+        rcssserver=server.rcssserver,
+        opponent_cmd=server.opponent_cmd,
+        team_names=("elevens_l", server.opponent_name if server.opponent_cmd else "elevens_r"),
+    )
+    return lambda index: RoboCupEnv(env_config)
 
 
 def train_robocup(
@@ -417,13 +262,13 @@ def train_robocup(
     env_factory: EnvFactory | None = None,
     progress: bool = True,
 ) -> RoboCupTrainResult:
-    """Run ``config`` with ``elevens.runs.loop.train``, the games of every iteration played on
-    G servers (``env_factory``: how to start game g's, by default a RoboCupEnv), then the
+    """Run ``config`` with ``elevens.runs.loop.train``, every iteration's games played on G
+    servers (``env_factory``: how to start game g's, by default a RoboCupEnv), then the
     learner's ``improve``; logging, evaluation in the simulator (``run.eval_teams``),
     checkpoints, ``resume``, ``run.max_minutes`` (summed over sessions), Ctrl-C and the
     learning curve are the loop's, as in ``elevens train``."""
     config.validate()
-    servers = _Servers(config, env_factory or _default_env_factory(config))
+    servers = ServerGames(config, env_factory or _default_env_factory(config))
     host = HostGames(
         make_learner=lambda learner: make_learner(learner, devices=1, plays_rcssserver=True),
         open=servers.open,
@@ -433,65 +278,146 @@ def train_robocup(
     return RoboCupTrainResult(**fields, episodes=servers.episodes, restarts=servers.restarts)
 
 
-class _Servers:
-    """A run's G servers, one game each: started when the loop opens them, they play every
-    iteration's games (``Collect``) and write episodes.csv."""
+_TERMS = ("goal_reward", "ball_shaping", "approach_shaping", "possession_shaping", "holder",
+          "scripted")  # the StepRecord fields a server step's info gives for both sides
+_COUNTS = ("restarted", "missed", "malformed", "ball_returned")  # episodes.csv's, from info
+
+
+class ServerGames:
+    """The games of a server run, one per env of ``factory``. ``open`` (the run's
+    ``HostGames.open``) starts them and gives ``collect``: one episode of every game, the
+    learner against its opponent, played as ``elevens.play``'s compiled step plays the
+    simulator's (the sides of ``home_sides``, one batched network call per team and step) and
+    recorded and packed as the compiled rollout is. With an external opponent
+    (``server.opponent_cmd``) the learner plays the left side of every game."""
 
     def __init__(self, config: RoboCupTrainConfig, factory: EnvFactory) -> None:
         self.config, self.factory = config, factory
+        self.envs: list[Any] = []
         self.episodes = self.restarts = 0
         self.began = time.perf_counter()
 
     @contextlib.contextmanager
-    def open(self, learner: Any) -> Iterator[Collect]:
+    def open(self, learner: Learner) -> Iterator[Collect]:
         config, games = self.config, self.config.learner.games_per_iteration
-        length = config.learner.env.game.episode_length
         layout = RunLayout.of(config.run.run_dir)
+        layout.root.mkdir(parents=True, exist_ok=True)
         layout.robocup_config.write_text(
             json.dumps(dataclasses.asdict(config), indent=2), encoding="utf-8"
         )
-        act = make_actor(learner.policy)
-        # A league plays one snapshot per game; one shared opponent acts like the learner.
-        opponent_act = make_actor(learner.policy, True) if learner.opponent.per_game else act
-        pool = ThreadPoolExecutor(games) if config.server.threads and games > 1 else None
-        envs: list[Any] = []
-        with layout.episodes_csv.open("a", newline="", encoding="utf-8") as file:
-            writer = csv.writer(file)
-            if file.tell() == 0:
-                writer.writerow(EPISODE_FIELDS)
-
-            def collect(state: Any, key: jax.Array) -> tuple[Rollout, dict[str, float]]:
-                began, iteration = time.perf_counter(), int(state.iteration)
-                data, logs = play_iteration(
-                    envs, act, learner.policy, state.params.policy,
-                    learner.opponent.act_params(state.opponent), key, episode_length=length,
-                    shaping_active=bool(state.shaping.active),
-                    seed=config.run.seed * 1_000_003 + iteration * games, pool=pool,
-                    external_opponent=config.server.opponent_cmd is not None,
-                    opponent_act=opponent_act,
-                )
-                played = time.perf_counter()
-                for g, (side, log) in enumerate(zip(data.learner_side, logs, strict=True)):
-                    writer.writerow(
-                        (iteration + 1, g, int(side), log.goals_for, log.goals_against, length,
-                         log.server_cycles, log.restarts, log.missed, log.malformed,
-                         log.ball_returned, f"{played - self.began:.1f}")
-                    )
-                file.flush()
-                self.episodes += len(logs)
-                self.restarts += sum(log.restarts for log in logs)
-                return data, {
-                    **{f"robocup/{name}": float(sum(getattr(log, name) for log in logs))
-                       for name in ("restarts", "missed", "malformed")},
-                    "time/play_steps_per_s": games * length / max(played - began, 1e-9),
-                }
-
+        external = config.server.opponent_cmd is not None
+        self.learner = learner
+        self.act = _actor(learner.policy, learner.opponent.per_game, external)
+        self.sides = np.zeros(games, np.int32) if external else home_sides(games)
+        self.pool = ThreadPoolExecutor(games) if config.server.threads and games > 1 else None
+        with layout.episodes_csv.open("a", newline="", encoding="utf-8") as self.csv:
+            if self.csv.tell() == 0:
+                csv.writer(self.csv).writerow(EPISODE_FIELDS)
             try:
                 for g in range(games):  # one at a time: a failed start closes those before it
-                    envs.append(self.factory(g))
-                yield collect
+                    self.envs.append(self.factory(g))
+                yield self.collect
             finally:
-                if pool is not None:
-                    pool.shutdown(wait=True)
-                for env in envs:
+                if self.pool is not None:
+                    self.pool.shutdown(wait=True)
+                for env in self.envs:
                     env.close()
+                self.envs = []
+
+    def each(self, fn: Callable[[Any, Any], Any], args: Iterable[Any]) -> list[Any]:
+        """``fn(env, args[g])`` for the env of every game g, on the pool when there is one."""
+        if self.pool is None:
+            return [fn(env, arg) for env, arg in zip(self.envs, args, strict=True)]
+        return list(self.pool.map(fn, self.envs, args))
+
+    def collect(self, state: TrainState, key: jax.Array) -> tuple[Rollout, dict[str, float]]:
+        """One episode of every game for ``state``'s learner, opponent and shaping, as the
+        compiled ``collect``'s ``Rollout``, and the server's counts (also in episodes.csv)."""
+        began, envs, sides = time.perf_counter(), self.envs, self.sides
+        num_games, n = len(envs), envs[0].players_per_team
+        length = self.config.learner.env.game.episode_length
+        seed = self.config.run.seed * 1_000_003 + int(state.iteration) * num_games
+        started = self.each(lambda env, g: env.reset(seed=seed + g), range(num_games))
+        states, observations = map(list, zip(*started, strict=True))
+        params = (state.params.policy, self.learner.opponent.act_params(state.opponent))
+        carries = (self.learner.policy.initial_carry((num_games, n)),) * 2
+        initial_carry, reset = carries[0], np.ones(num_games, bool)
+        goals, counts = np.zeros((num_games, 2), np.int32), np.zeros((4, num_games), np.int64)
+        times: list[list[int]] = [[] for _ in envs]  # the server's clock at every step
+        records: list[StepRecord] = []
+        for t, keys in enumerate(jax.random.split(key, (length, 2))):
+            obs = _stack(observations)  # leading [G, 2, n]
+            views = _stack([env.global_state(s) for env, s in zip(envs, states, strict=True)])
+            player_reset = np.broadcast_to(reset[:, None], (num_games, n))
+            carries, sample, actions, learner_obs = self.act(
+                params, carries, obs, sides, player_reset, keys
+            )
+            results = self.each(lambda env, game: env.step(game), np.asarray(actions))
+            states, observations, _, _, infos = map(list, zip(*results, strict=True))
+            for g, info in enumerate(infos):
+                goals[g] += np.asarray(info["goals"])[[sides[g], 1 - sides[g]]]
+                counts[:, g] += [int(info.get(name, 0)) for name in _COUNTS]
+                times[g] += [int(info["server_time"])] if "server_time" in info else []
+            mine: dict[str, Any] = {
+                name: np.stack([np.asarray(info[name])[side] for info, side in zip(
+                    infos, sides, strict=True)]).astype(bool if name == "scripted" else np.float32)
+                for name in _TERMS
+            }
+            # A restart cuts the episode short and a fresh one starts next step (RoboCupEnv).
+            done = np.array([bool(info.get("restarted", False)) for info in infos])
+            done |= t == length - 1
+            shaping = mine["ball_shaping"] + mine["approach_shaping"] + mine["possession_shaping"]
+            reward = mine["goal_reward"] + (shaping if bool(state.shaping.active) else 0.0)
+            step: dict[str, Any] = dict(
+                obs=learner_obs, global_state=_pick(views, sides), pre_tanh=sample.pre_tanh,
+                log_prob=sample.log_prob, reward=reward, done=done, truncated=done, reset=reset,
+            )
+            records.append(StepRecord(**step, **mine))
+            reset = done  # the policy zeroes those rows' memories itself (RecurrentCore)
+        history, (goals_for, goals_against) = _stack(records), jnp.asarray(goals.T)
+        rollout = collected(history, goals_for, goals_against, jnp.asarray(sides), initial_carry, n)
+        played = time.perf_counter()
+        writer, iteration = csv.writer(self.csv), int(state.iteration) + 1
+        for g in range(num_games):
+            cycles = times[g][-1] - times[g][0] + 1 if times[g] else 0
+            writer.writerow((iteration, g, sides[g], *goals[g], length, cycles, *counts[:, g],
+                             f"{played - self.began:.1f}"))
+        self.csv.flush()
+        self.episodes += num_games
+        self.restarts += int(counts[0].sum())
+        return rollout, {
+            "robocup/restarts": float(counts[0].sum()), "robocup/missed": float(counts[1].sum()),
+            "robocup/malformed": float(counts[2].sum()),
+            "time/play_steps_per_s": num_games * length / max(played - began, 1e-9),
+        }
+
+
+def _actor(policy: Any, per_game: bool, external: bool) -> Callable[..., Any]:
+    """Both teams' actions in G games, jitted, as ``elevens.play``'s step takes them: (params,
+    carries, obs [G, 2, n], side i32[G], reset bool[G, n], keys[2]) -> (carries, the learner's
+    NetworkSample, actions f32[G, 2, n, 2 or 12] by side, the learner's obs). ``per_game``:
+    the opponent's params have a leading [G] axis (a league's snapshots); ``external``: another
+    program plays the opponent, whose actions are left at 0."""
+
+    @jax.jit
+    def act(params: Any, carries: Any, obs: Observation, side: jax.Array, reset: jax.Array,
+            keys: jax.Array) -> Any:
+        learner_obs = pick_side(obs, side)
+        learner = NetworkActor(policy, params[0])
+        carry, home, sample = learner.act(carries[0], learner_obs, reset, keys[0])
+        away_carry, away = carries[1], jnp.zeros_like(home)
+        if not external:
+            opponent = NetworkActor(policy, params[1], per_game)
+            away_carry, away, _ = opponent.act(carries[1], pick_side(obs, 1 - side), reset, keys[1])
+        return (carry, away_carry), sample, place_sides(home, away, side), learner_obs
+
+    return act
+
+
+def _stack(trees: Sequence[Any]) -> Any:
+    return jax.tree.map(lambda *leaves: np.stack([np.asarray(x) for x in leaves]), *trees)
+
+
+def _pick(tree: Any, sides: np.ndarray) -> Any:
+    """Leaves [G, 2, ...] -> [G, ...]: team ``sides[g]`` of game g."""
+    return jax.tree.map(lambda leaf: leaf[np.arange(len(sides)), sides], tree)

@@ -475,7 +475,7 @@ def test_a_thesis12_team_plays_the_server_or_its_bodies_only(tmp_path):
         **{f"network.{name}": value for name, value in network.items()},
     })
     result = train_robocup(config, env_factory=lambda i: KickScoreEnv(1), progress=False)
-    assert result.iterations == 0
+    assert result.iteration == 0
     _, expected = load_learner_params(str(out))
     _, started = load_learner_params(str(tmp_path / "run"))
     for a, b in zip(jax.tree.leaves(expected), jax.tree.leaves(started), strict=True):

@@ -213,7 +213,7 @@ def test_train_writes_episodes_checkpoints_and_resumes(tmp_path: Path) -> None:
 
     config = small_config(tmp_path)
     result = train_robocup(config, env_factory=factory, progress=False)
-    assert result.iterations == 2 and result.episodes == 4 and not result.interrupted
+    assert result.iteration == 2 and result.episodes == 4 and not result.interrupted
     assert result.env_steps == 2 * 2 * 12
     assert all(env.closed for env in envs)
     run = tmp_path / "run"
@@ -251,7 +251,7 @@ def test_train_writes_episodes_checkpoints_and_resumes(tmp_path: Path) -> None:
     assert len(envs) == started
     more = small_config(tmp_path, **{"run.iterations": 3})
     resumed = train_robocup(more, resume=True, env_factory=factory, progress=False)
-    assert resumed.iterations == 3 and resumed.episodes == 2
+    assert resumed.iteration == 3 and resumed.episodes == 2
     assert (run / "checkpoints" / "3").is_dir()
     # The checkpoint is a normal one: it loads as a team for the simulator and the server.
     team = load_robocup_team(str(run), "sim")
@@ -264,7 +264,7 @@ def test_every_opponent_kind_trains_in_the_server_loop(tmp_path: Path, kind: str
     # snapshots play their games one network per game, and its metrics are logged.
     config = small_config(tmp_path, **{"opponent.kind": kind})
     result = train_robocup(config, env_factory=lambda i: SimEnv(1), progress=False)
-    assert result.iterations == 2
+    assert result.iteration == 2
     logged = read_metrics_csv(tmp_path / "run")
     name, expected = (
         ("opponent/league_size", [1.0, 1.0]) if kind == "league"
@@ -305,7 +305,7 @@ def test_a_12_value_policy_learns_in_the_server_loop(tmp_path: Path) -> None:
                      "env.approach_shaping_weight": 0.0}
     )
     result = train_robocup(config, env_factory=factory, progress=False)
-    assert result.iterations == 12
+    assert result.iteration == 12
     assert all(a.shape == (2, 1, 12) for env in envs for a in env.actions_seen)
     logged = read_metrics_csv(tmp_path / "run")
     reward = logged["env/goal_reward"].values  # the learner's kick scores summed over a game
@@ -340,7 +340,7 @@ def test_ctrl_c_writes_a_checkpoint(tmp_path: Path) -> None:
 
     config = small_config(tmp_path, **{"run.iterations": 5})
     result = train_robocup(config, env_factory=lambda i: Interrupting(1), progress=False)
-    assert result.interrupted and result.iterations == 0
+    assert result.interrupted and result.iteration == 0
     assert result.checkpoint is not None and result.checkpoint.is_dir()
 
 
@@ -361,7 +361,7 @@ def test_ctrl_c_in_a_server_game_still_draws_the_learning_curve(tmp_path: Path) 
 
     config = small_config(tmp_path, **{"run.iterations": 5, "run.checkpoint_every": 5})
     result = train_robocup(config, env_factory=factory, progress=False)
-    assert result.interrupted and result.iterations == 1 and result.episodes == 2
+    assert result.interrupted and result.iteration == 1 and result.episodes == 2
     assert result.checkpoint == tmp_path / "run" / "checkpoints" / "1"
     assert (tmp_path / "run" / "learning_curve.png").stat().st_size > 0
     assert all(env.closed for env in envs)
@@ -384,21 +384,37 @@ def test_max_minutes_add_up_over_resumed_server_runs(tmp_path: Path) -> None:
 
     config = small_config(tmp_path, **{"run.iterations": 5, "run.max_minutes": 0.1})
     first = train_robocup(config, env_factory=factory, progress=False)
-    assert first.iterations == 1 and first.out_of_time and first.train_seconds >= 6.0
+    assert first.iteration == 1 and first.out_of_time and first.train_seconds >= 6.0
     # The same budget again: already spent, so not one more game is played.
     played = sum(len(env.actions_seen) for env in envs)
     again = train_robocup(config, resume=True, env_factory=factory, progress=False)
-    assert again.iterations == 1 and again.out_of_time and again.episodes == 0
+    assert again.iteration == 1 and again.out_of_time and again.episodes == 0
     assert sum(len(env.actions_seen) for env in envs) == played
     # A second more than the first session spent: one more iteration, then the sum is over.
     budget = (first.train_seconds + 1.0) / 60.0
     more = small_config(tmp_path, **{"run.iterations": 5, "run.max_minutes": budget})
     last = train_robocup(more, resume=True, env_factory=factory, progress=False)
-    assert last.iterations == 2 and last.out_of_time
+    assert last.iteration == 2 and last.out_of_time
     hours = read_metrics_csv(tmp_path / "run")["time/hours"]
     spent = dict(zip(hours.steps.tolist(), (hours.values * 3600.0).tolist(), strict=True))
     assert spent[1] >= 6.0 and spent[2] >= spent[1] + 6.0  # the second counts from the first
     assert last.train_seconds >= spent[2] > budget * 60.0
+
+
+def test_the_host_loop_refuses_a_mix_of_game_sizes_before_anything_starts(
+    tmp_path: Path,
+) -> None:
+    from elevens.runs.loop import HostGames, train
+
+    def refuse(*args: Any) -> Any:
+        raise AssertionError("nothing is built or started for a refused run")
+
+    config = make_config(
+        "2v2", **{"env.players_per_team": 1, "env.mix": ("2v2",), "env.mix_shares": (0.5,),
+                  "run.run_dir": str(tmp_path / "run")}
+    )
+    with pytest.raises(ValueError, match=r"env.mix=\('2v2',\) is invalid when the games"):
+        train(config, progress=False, host=HostGames(make_learner=refuse, open=refuse))
 
 
 def test_play_handcrafted_teams_on_a_stand_in_env() -> None:
@@ -478,7 +494,7 @@ def test_server_short_training_run(tmp_path: Path, actions: int) -> None:
                      "network.actions": actions}
     )
     result = train_robocup(config, progress=False)
-    assert result.iterations == 2 and result.restarts == 0
+    assert result.iteration == 2 and result.restarts == 0
     with (tmp_path / "run" / EPISODES_CSV).open() as f:
         assert len(list(csv.DictReader(f))) == 4
 
@@ -496,7 +512,7 @@ def test_server_training_against_an_external_team(tmp_path: Path) -> None:
            "server.opponent_name": "fake"},
     )
     result = train_robocup(config, progress=False)
-    assert result.iterations == 2 and result.restarts == 0
+    assert result.iteration == 2 and result.restarts == 0
     with (tmp_path / "run" / EPISODES_CSV).open() as f:
         rows = list(csv.DictReader(f))
     assert [r["learner_side"] for r in rows] == ["0", "0"]
@@ -556,7 +572,7 @@ def test_init_from_a_checkpoint_starts_from_its_networks_and_resumes_with_them(
                      **networks}
     )
     result = train_robocup(target, env_factory=lambda i: SimEnv(1), progress=False)
-    assert result.iterations == 0
+    assert result.iteration == 0
     _, expected = load_learner_params(str(tmp_path / "source"))
     _, started = load_learner_params(str(tmp_path / "run"))
     for a, b in zip(jax.tree.leaves(expected), jax.tree.leaves(started), strict=True):
@@ -568,7 +584,7 @@ def test_init_from_a_checkpoint_starts_from_its_networks_and_resumes_with_them(
         small_config(tmp_path, **{"run.max_minutes": 1e-9, **networks}), resume=True,
         env_factory=lambda i: SimEnv(1), progress=False,
     )
-    assert resumed.iterations == 0 and not resumed.interrupted
+    assert resumed.iteration == 0 and not resumed.interrupted
     saved = json.loads((tmp_path / "run" / "config.json").read_text())
     assert saved["learner"]["network"]["features"] == 16
     assert saved["learner"]["network"]["lstm_features"] == 8

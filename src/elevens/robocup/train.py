@@ -2,18 +2,13 @@
 
 The thesis (sections 4.5 and 6.7) trains its algorithm unchanged in the official server. Here
 ``G`` RoboCupEnv games, each on its own rcssserver process, play one episode each per iteration
-on the host (the server is a separate process, so this part cannot be compiled); both teams'
-networks act in one jitted call per step for all games. The steps are recorded and packed as
-the compiled rollout's are (``elevens.train.rollout.StepRecord``, ``collected``), and the run
-is ``elevens.runs.loop.train``'s with these games in place of the compiled ones
-(``HostGames``): the learner's ``improve``, logging, checkpoints, resume, the time budget and
-the evaluation in the simulator are the simulator's.
+on the host (a separate process cannot be compiled), recorded and packed as the compiled
+rollout's are; the run is ``elevens.runs.loop.train``'s with these games in place of the
+compiled ones (``HostGames``): the learner's ``improve``, logs, checkpoints, resume, time budget.
 
-Episode boundaries are the loop's own: every game is reset at the start of an iteration and ends
-after ``episode_length`` steps. If a server dies mid-episode, RoboCupEnv restarts it and starts a
-fresh episode; that step is marked as an episode end and the next one as a start (the LSTM memory
-is zeroed there), so the advantages never run across it. Games alternate sides as in the
-simulator (``elevens.play.home_sides``).
+Every game is reset at the start of an iteration and ends after ``episode_length`` steps. If a
+server dies mid-episode, RoboCupEnv restarts it and starts a fresh episode; that step is marked
+as an episode end and the next one as a start, so the advantages never run across it.
 """
 
 from __future__ import annotations
@@ -221,19 +216,13 @@ def make_robocup_config(**overrides: Any) -> RoboCupTrainConfig:
 
 @dataclasses.dataclass
 class RoboCupTrainResult(TrainResult):
-    """``elevens.runs.loop.train``'s result and this call's server games."""
+    """``elevens.runs.loop.train``'s result and this call's server games and restarts."""
 
     episodes: int = 0
     restarts: int = 0
-    """Servers restarted in this call."""
-
-    @property
-    def iterations(self) -> int:
-        return self.iteration
 
 
-EnvFactory = Callable[[int], Any]
-"""game index -> a RoboCupEnv-like object (reset(seed), step(actions), global_state(state))."""
+EnvFactory = Callable[[int], Any]  # game g -> its RoboCupEnv (reset, step, global_state)
 
 
 def _default_env_factory(config: RoboCupTrainConfig) -> EnvFactory:
@@ -256,10 +245,7 @@ def _default_env_factory(config: RoboCupTrainConfig) -> EnvFactory:
 
 
 def train_robocup(
-    config: RoboCupTrainConfig,
-    *,
-    resume: bool = False,
-    env_factory: EnvFactory | None = None,
+    config: RoboCupTrainConfig, *, resume: bool = False, env_factory: EnvFactory | None = None,
     progress: bool = True,
 ) -> RoboCupTrainResult:
     """Run ``config`` with ``elevens.runs.loop.train``, every iteration's games played on G
@@ -284,12 +270,11 @@ _COUNTS = ("restarted", "missed", "malformed", "ball_returned")  # episodes.csv'
 
 
 class ServerGames:
-    """The games of a server run, one per env of ``factory``. ``open`` (the run's
-    ``HostGames.open``) starts them and gives ``collect``: one episode of every game, the
-    learner against its opponent, played as ``elevens.play``'s compiled step plays the
-    simulator's (the sides of ``home_sides``, one batched network call per team and step) and
-    recorded and packed as the compiled rollout is. With an external opponent
-    (``server.opponent_cmd``) the learner plays the left side of every game."""
+    """The games of a server run, one per env of ``factory``: ``open`` (``HostGames.open``)
+    starts them and gives ``collect``, one episode of every game played as ``elevens.play``'s
+    step plays the simulator's (the sides of ``home_sides``, one network call per team and
+    step), recorded and packed as the compiled rollout is. With ``server.opponent_cmd`` the
+    learner plays the left side of every game."""
 
     def __init__(self, config: RoboCupTrainConfig, factory: EnvFactory) -> None:
         self.config, self.factory = config, factory
@@ -302,9 +287,8 @@ class ServerGames:
         config, games = self.config, self.config.learner.games_per_iteration
         layout = RunLayout.of(config.run.run_dir)
         layout.root.mkdir(parents=True, exist_ok=True)
-        layout.robocup_config.write_text(
-            json.dumps(dataclasses.asdict(config), indent=2), encoding="utf-8"
-        )
+        written = json.dumps(dataclasses.asdict(config), indent=2)
+        layout.robocup_config.write_text(written, encoding="utf-8")
         external = config.server.opponent_cmd is not None
         self.learner = learner
         self.act = _actor(learner.policy, learner.opponent.per_game, external)
@@ -322,13 +306,11 @@ class ServerGames:
                     self.pool.shutdown(wait=True)
                 for env in self.envs:
                     env.close()
-                self.envs = []
 
     def each(self, fn: Callable[[Any, Any], Any], args: Iterable[Any]) -> list[Any]:
         """``fn(env, args[g])`` for the env of every game g, on the pool when there is one."""
-        if self.pool is None:
-            return [fn(env, arg) for env, arg in zip(self.envs, args, strict=True)]
-        return list(self.pool.map(fn, self.envs, args))
+        mapped = map if self.pool is None else self.pool.map
+        return list(mapped(fn, self.envs, args))
 
     def collect(self, state: TrainState, key: jax.Array) -> tuple[Rollout, dict[str, float]]:
         """One episode of every game for ``state``'s learner, opponent and shaping, as the
@@ -359,20 +341,18 @@ class ServerGames:
                 counts[:, g] += [int(info.get(name, 0)) for name in _COUNTS]
                 times[g] += [int(info["server_time"])] if "server_time" in info else []
             mine: dict[str, Any] = {
-                name: np.stack([np.asarray(info[name])[side] for info, side in zip(
-                    infos, sides, strict=True)]).astype(bool if name == "scripted" else np.float32)
-                for name in _TERMS
+                name: _pick(_stack([info[name] for info in infos]), sides) for name in _TERMS
             }
             # A restart cuts the episode short and a fresh one starts next step (RoboCupEnv).
             done = np.array([bool(info.get("restarted", False)) for info in infos])
             done |= t == length - 1
             shaping = mine["ball_shaping"] + mine["approach_shaping"] + mine["possession_shaping"]
             reward = mine["goal_reward"] + (shaping if bool(state.shaping.active) else 0.0)
-            step: dict[str, Any] = dict(
+            mine.update(reward=reward, done=done, truncated=done, reset=reset)
+            records.append(StepRecord(
                 obs=learner_obs, global_state=_pick(views, sides), pre_tanh=sample.pre_tanh,
-                log_prob=sample.log_prob, reward=reward, done=done, truncated=done, reset=reset,
-            )
-            records.append(StepRecord(**step, **mine))
+                log_prob=sample.log_prob, **mine,
+            ))
             reset = done  # the policy zeroes those rows' memories itself (RecurrentCore)
         history, (goals_for, goals_against) = _stack(records), jnp.asarray(goals.T)
         rollout = collected(history, goals_for, goals_against, jnp.asarray(sides), initial_carry, n)
@@ -385,25 +365,22 @@ class ServerGames:
         self.csv.flush()
         self.episodes += num_games
         self.restarts += int(counts[0].sum())
-        return rollout, {
-            "robocup/restarts": float(counts[0].sum()), "robocup/missed": float(counts[1].sum()),
-            "robocup/malformed": float(counts[2].sum()),
-            "time/play_steps_per_s": num_games * length / max(played - began, 1e-9),
-        }
+        totals = dict(zip(("restarts", "missed", "malformed"), counts.sum(axis=1), strict=False))
+        row = {f"robocup/{name}": float(total) for name, total in totals.items()}
+        row["time/play_steps_per_s"] = num_games * length / max(played - began, 1e-9)
+        return rollout, row
 
 
 def _actor(policy: Any, per_game: bool, external: bool) -> Callable[..., Any]:
     """Both teams' actions in G games, jitted, as ``elevens.play``'s step takes them: (params,
     carries, obs [G, 2, n], side i32[G], reset bool[G, n], keys[2]) -> (carries, the learner's
-    NetworkSample, actions f32[G, 2, n, 2 or 12] by side, the learner's obs). ``per_game``:
-    the opponent's params have a leading [G] axis (a league's snapshots); ``external``: another
-    program plays the opponent, whose actions are left at 0."""
+    NetworkSample, actions f32[G, 2, n, A] by side, its obs). ``per_game``: a league's opponent
+    params, leading [G]; ``external``: another program plays the opponent (actions left 0)."""
 
     @jax.jit
     def act(params: Any, carries: Any, obs: Observation, side: jax.Array, reset: jax.Array,
             keys: jax.Array) -> Any:
-        learner_obs = pick_side(obs, side)
-        learner = NetworkActor(policy, params[0])
+        learner_obs, learner = pick_side(obs, side), NetworkActor(policy, params[0])
         carry, home, sample = learner.act(carries[0], learner_obs, reset, keys[0])
         away_carry, away = carries[1], jnp.zeros_like(home)
         if not external:

@@ -13,9 +13,9 @@ run directory (checkpoints go through Orbax's multi-process path) and evaluates.
 Evaluation plays the learner as a ``NetworkTeam`` that SAMPLES its actions by default
 (``run.eval_deterministic``): that is the policy PPO trained and the one the opponents meet.
 
-A run whose games cannot be compiled (``elevens robocup train``: they are played in
-rcssserver) passes ``HostGames``: the loop is the same, and each iteration of a chunk is the
-learner's ``iteration`` with the host's ``collect`` in place of the compiled rollout.
+A run whose games cannot be compiled (another program plays them, e.g. ``elevens robocup
+train``'s servers) passes ``HostGames``: the loop is the same, and each iteration of a chunk is
+the learner's ``iteration`` with the host's ``collect`` in place of the compiled rollout.
 """
 
 from __future__ import annotations
@@ -87,9 +87,10 @@ opponent's params, the shaping in force) and host metrics logged with the iterat
 
 @dataclasses.dataclass(frozen=True)
 class HostGames:
-    """Where a run plays its games when they cannot be compiled (rcssserver's). Every iteration
-    is then ``learner.iteration``'s order with ``collect`` on the host: the state's key split
-    in four, ``collect(state, rollout key)``, then the learner's jitted ``improve``."""
+    """Where a run plays its games when they cannot be compiled (another program plays them).
+    Every iteration is then ``learner.iteration``'s order with ``collect`` on the host: the
+    state's key split in four, ``collect(state, rollout key)``, the learner's jitted
+    ``improve``."""
 
     make_learner: Callable[[LearnerConfig], Learner]
     """Builds the run's learner (one game size: a mix of sizes is the simulator's)."""
@@ -226,6 +227,11 @@ def open_run(
         damage = _resume_damage(checkpointer, config) if latest is not None else None
         for team in config.run.eval_teams:  # a bad spec fails here, before anything compiles
             evaluation_team(team, config.learner.env.game, game_actions(config.learner))
+        if host is not None and config.learner.env.mix:
+            raise ValueError(
+                f"env.mix={config.learner.env.mix!r} is invalid when the games are played on "
+                "the host: they have one game size; leave it out"
+            )
         start = None
         if config.run.init_from and latest is None:
             _, start = load_start_params(config.run.init_from, config)

@@ -29,8 +29,8 @@ from elevens.robocup.external import TeamCommandNotFound
 from elevens.robocup.play import load_robocup_team, play_robocup
 from elevens.robocup.train import (
     RoboCupTrainConfig,
+    ServerGames,
     make_robocup_config,
-    play_iteration,
     train_robocup,
 )
 from elevens.runs.errors import RunRefusedError
@@ -147,22 +147,21 @@ def test_the_robocup_config_is_the_simulators_learner_and_run() -> None:
     assert (saved.preset, saved.learner, saved.run) == ("robocup", learner, config.run)
 
 
-def test_play_iteration_packs_a_rollout_like_the_compiled_one(tmp_path: Path) -> None:
+def test_server_games_pack_a_rollout_like_the_compiled_one(tmp_path: Path) -> None:
     config = small_config(tmp_path, **{"env.players_per_team": 2, "env.episode_length": 6})
     trainer = make_learner(config.learner)
     state = trainer.init(jax.random.key(0))
-    from elevens.robocup.train import make_actor
-
     envs = [SimEnv(2), SimEnv(2, restart_at=3)]
-    data, logs = play_iteration(
-        envs, make_actor(trainer.policy), trainer.policy, state.params.policy,
-        state.params.policy, jax.random.key(1), episode_length=6, shaping_active=True, seed=0,
-    )
+    games = ServerGames(config, lambda g: envs[g])
+    with games.open(trainer) as collect:
+        data, row = collect(state, jax.random.key(1))
+    assert all(env.closed for env in envs)
     t = data.transitions
     assert t.obs.self_features.shape == (4, 6, 15)
     assert t.obs.entities.shape == (4, 6, 4, 11)
     assert t.pre_tanh.shape == (4, 6, 2) and t.log_prob.shape == (4, 6)
     assert data.game_global_state.players.shape == (2, 6, 4, 11)
+    assert data.scripted is not None and data.scripted.shape == (4, 6)
     assert np.asarray(data.learner_side).tolist() == [0, 1]
     done, reset = np.asarray(t.done), np.asarray(t.reset)
     # Episode ends: the last step everywhere, and the faked restart in game 1 (players 2, 3).
@@ -170,7 +169,9 @@ def test_play_iteration_packs_a_rollout_like_the_compiled_one(tmp_path: Path) ->
     assert done[2:, 2].all() and not done[2:, [0, 1, 3, 4]].any()
     # Starts: step 0 everywhere, and the step after the restart in game 1.
     assert reset[:, 0].all() and reset[2:, 3].all() and not reset[:2, 1:].any()
-    assert logs[1].restarts == 1 and logs[0].restarts == 0
+    assert games.restarts == 1 and row["robocup/restarts"] == 1.0
+    with (tmp_path / "run" / EPISODES_CSV).open() as f:
+        assert [r["restarts"] for r in csv.DictReader(f)] == ["0", "1"]
     # The learner acted on side 1 in game 1: the actions there are its samples, squashed.
     acted = np.stack(envs[1].actions_seen)[:, 1]  # [T, n, 2]
     np.testing.assert_allclose(acted, np.tanh(np.asarray(t.pre_tanh[2:])).swapaxes(0, 1),
@@ -183,17 +184,13 @@ def test_play_iteration_packs_a_rollout_like_the_compiled_one(tmp_path: Path) ->
 def test_an_external_opponent_leaves_the_learner_on_the_left_and_its_side_unplayed(
     tmp_path: Path,
 ) -> None:
-    config = small_config(tmp_path, **{"env.players_per_team": 2, "env.episode_length": 4})
+    config = small_config(tmp_path, **{"env.players_per_team": 2, "env.episode_length": 4,
+                                       "server.opponent_cmd": "start.sh"})
     trainer = make_learner(config.learner)
     state = trainer.init(jax.random.key(0))
-    from elevens.robocup.train import make_actor
-
     envs = [SimEnv(2), SimEnv(2)]
-    data, _ = play_iteration(
-        envs, make_actor(trainer.policy), trainer.policy, state.params.policy,
-        state.params.policy, jax.random.key(1), episode_length=4, shaping_active=True, seed=0,
-        external_opponent=True,
-    )
+    with ServerGames(config, lambda g: envs[g]).open(trainer) as collect:
+        data, _ = collect(state, jax.random.key(1))
     assert np.asarray(data.learner_side).tolist() == [0, 0]
     for env in envs:
         acted = np.stack(env.actions_seen)  # [T, 2, n, 2]
@@ -215,9 +212,9 @@ def test_train_writes_episodes_checkpoints_and_resumes(tmp_path: Path) -> None:
         return envs[-1]
 
     config = small_config(tmp_path)
-    lines: list[str] = []
-    result = train_robocup(config, env_factory=factory, print_fn=lines.append)
-    assert result.iterations == 2 and result.episodes == 4 and not result.interrupted
+    result = train_robocup(config, env_factory=factory, progress=False)
+    assert result.iteration == 2 and result.episodes == 4 and not result.interrupted
+    assert result.env_steps == 2 * 2 * 12
     assert all(env.closed for env in envs)
     run = tmp_path / "run"
     with (run / EPISODES_CSV).open() as f:
@@ -237,7 +234,7 @@ def test_train_writes_episodes_checkpoints_and_resumes(tmp_path: Path) -> None:
     assert robocup_config["learner"]["games_per_iteration"] == 2
     assert robocup_config["server"]["threads"] is False
     assert json.loads((run / "config.json").read_text())["config_version"] == 2
-    assert "robocup train 2:" in lines[-1]
+    assert logged["time/env_steps"].values[-1] == 48
     # A second run into the same directory needs --resume, and then continues.
     with pytest.raises(ValueError, match="resume"):
         train_robocup(config, env_factory=factory)
@@ -253,8 +250,8 @@ def test_train_writes_episodes_checkpoints_and_resumes(tmp_path: Path) -> None:
     assert "ppo.learning_rate: 0.0001 -> 0.0003" in str(refused.value)
     assert len(envs) == started
     more = small_config(tmp_path, **{"run.iterations": 3})
-    resumed = train_robocup(more, resume=True, env_factory=factory, print_fn=lines.append)
-    assert resumed.iterations == 3 and resumed.episodes == 2
+    resumed = train_robocup(more, resume=True, env_factory=factory, progress=False)
+    assert resumed.iteration == 3 and resumed.episodes == 2
     assert (run / "checkpoints" / "3").is_dir()
     # The checkpoint is a normal one: it loads as a team for the simulator and the server.
     team = load_robocup_team(str(run), "sim")
@@ -266,8 +263,8 @@ def test_every_opponent_kind_trains_in_the_server_loop(tmp_path: Path, kind: str
     # The server loop improves through the learner's own opponent strategies: a league's
     # snapshots play their games one network per game, and its metrics are logged.
     config = small_config(tmp_path, **{"opponent.kind": kind})
-    result = train_robocup(config, env_factory=lambda i: SimEnv(1), print_fn=lambda _: None)
-    assert result.iterations == 2
+    result = train_robocup(config, env_factory=lambda i: SimEnv(1), progress=False)
+    assert result.iteration == 2
     logged = read_metrics_csv(tmp_path / "run")
     name, expected = (
         ("opponent/league_size", [1.0, 1.0]) if kind == "league"
@@ -307,8 +304,8 @@ def test_a_12_value_policy_learns_in_the_server_loop(tmp_path: Path) -> None:
                      "ppo.learning_rate": 3e-3, "env.ball_shaping_weight": 0.0,
                      "env.approach_shaping_weight": 0.0}
     )
-    result = train_robocup(config, env_factory=factory, print_fn=lambda _: None)
-    assert result.iterations == 12
+    result = train_robocup(config, env_factory=factory, progress=False)
+    assert result.iteration == 12
     assert all(a.shape == (2, 1, 12) for env in envs for a in env.actions_seen)
     logged = read_metrics_csv(tmp_path / "run")
     reward = logged["env/goal_reward"].values  # the learner's kick scores summed over a game
@@ -327,9 +324,10 @@ def test_server_training_can_evaluate_in_the_simulator(tmp_path: Path) -> None:
     config = small_config(
         tmp_path, **{"run.eval_teams": ("random",), "run.eval_games": 4, "run.eval_every": 1}
     )
-    train_robocup(config, env_factory=lambda i: SimEnv(1), print_fn=lambda _: None)
+    train_robocup(config, env_factory=lambda i: SimEnv(1), progress=False)
     logged = read_metrics_csv(tmp_path / "run")
-    assert logged["eval/random/outcome"].steps.tolist() == [1, 2]
+    # The curve starts at the untrained networks, as in elevens train.
+    assert logged["eval/random/outcome"].steps.tolist() == [0, 1, 2]
     assert (tmp_path / "run" / "learning_curve.png").stat().st_size > 0
 
 
@@ -341,9 +339,82 @@ def test_ctrl_c_writes_a_checkpoint(tmp_path: Path) -> None:
             return super().step(actions)
 
     config = small_config(tmp_path, **{"run.iterations": 5})
-    result = train_robocup(config, env_factory=lambda i: Interrupting(1), print_fn=lambda _: None)
-    assert result.interrupted and result.iterations == 0
+    result = train_robocup(config, env_factory=lambda i: Interrupting(1), progress=False)
+    assert result.interrupted and result.iteration == 0
     assert result.checkpoint is not None and result.checkpoint.is_dir()
+
+
+def test_ctrl_c_in_a_server_game_still_draws_the_learning_curve(tmp_path: Path) -> None:
+    # Ctrl-C while the servers play iteration 2: the run keeps iteration 1 (its checkpoint and
+    # metrics) and draws the curve so far, as elevens train does; the servers are closed.
+    envs: list[SimEnv] = []
+
+    class Interrupting(SimEnv):
+        def step(self, actions: np.ndarray) -> Any:
+            if len(self.actions_seen) == 12 + 4:  # step 4 of the second episode
+                raise KeyboardInterrupt
+            return super().step(actions)
+
+    def factory(index: int) -> SimEnv:
+        envs.append(Interrupting(1))
+        return envs[-1]
+
+    config = small_config(tmp_path, **{"run.iterations": 5, "run.checkpoint_every": 5})
+    result = train_robocup(config, env_factory=factory, progress=False)
+    assert result.interrupted and result.iteration == 1 and result.episodes == 2
+    assert result.checkpoint == tmp_path / "run" / "checkpoints" / "1"
+    assert (tmp_path / "run" / "learning_curve.png").stat().st_size > 0
+    assert all(env.closed for env in envs)
+    assert read_metrics_csv(tmp_path / "run")["train/policy_loss"].steps.tolist() == [1]
+
+
+def test_max_minutes_add_up_over_resumed_server_runs(tmp_path: Path) -> None:
+    # run.max_minutes bounds the run's training time summed over its sessions, as in elevens
+    # train: a resume starts from the time already spent, not from zero.
+    class Slow(SimEnv):
+        def step(self, actions: np.ndarray) -> Any:
+            time.sleep(0.25)  # an iteration (2 games x 12 steps) takes at least 6 s
+            return super().step(actions)
+
+    envs: list[Slow] = []
+
+    def factory(index: int) -> Slow:
+        envs.append(Slow(1))
+        return envs[-1]
+
+    config = small_config(tmp_path, **{"run.iterations": 5, "run.max_minutes": 0.1})
+    first = train_robocup(config, env_factory=factory, progress=False)
+    assert first.iteration == 1 and first.out_of_time and first.train_seconds >= 6.0
+    # The same budget again: already spent, so not one more game is played.
+    played = sum(len(env.actions_seen) for env in envs)
+    again = train_robocup(config, resume=True, env_factory=factory, progress=False)
+    assert again.iteration == 1 and again.out_of_time and again.episodes == 0
+    assert sum(len(env.actions_seen) for env in envs) == played
+    # A second more than the first session spent: one more iteration, then the sum is over.
+    budget = (first.train_seconds + 1.0) / 60.0
+    more = small_config(tmp_path, **{"run.iterations": 5, "run.max_minutes": budget})
+    last = train_robocup(more, resume=True, env_factory=factory, progress=False)
+    assert last.iteration == 2 and last.out_of_time
+    hours = read_metrics_csv(tmp_path / "run")["time/hours"]
+    spent = dict(zip(hours.steps.tolist(), (hours.values * 3600.0).tolist(), strict=True))
+    assert spent[1] >= 6.0 and spent[2] >= spent[1] + 6.0  # the second counts from the first
+    assert last.train_seconds >= spent[2] > budget * 60.0
+
+
+def test_the_host_loop_refuses_a_mix_of_game_sizes_before_anything_starts(
+    tmp_path: Path,
+) -> None:
+    from elevens.runs.loop import HostGames, train
+
+    def refuse(*args: Any) -> Any:
+        raise AssertionError("nothing is built or started for a refused run")
+
+    config = make_config(
+        "2v2", **{"env.players_per_team": 1, "env.mix": ("2v2",), "env.mix_shares": (0.5,),
+                  "run.run_dir": str(tmp_path / "run")}
+    )
+    with pytest.raises(ValueError, match=r"env.mix=\('2v2',\) is invalid when the games"):
+        train(config, progress=False, host=HostGames(make_learner=refuse, open=refuse))
 
 
 def test_play_handcrafted_teams_on_a_stand_in_env() -> None:
@@ -422,8 +493,8 @@ def test_server_short_training_run(tmp_path: Path, actions: int) -> None:
                      "server.rcssserver": os.environ.get("ELEVENS_RCSSSERVER"),
                      "network.actions": actions}
     )
-    result = train_robocup(config, print_fn=lambda _: None)
-    assert result.iterations == 2 and result.restarts == 0
+    result = train_robocup(config, progress=False)
+    assert result.iteration == 2 and result.restarts == 0
     with (tmp_path / "run" / EPISODES_CSV).open() as f:
         assert len(list(csv.DictReader(f))) == 4
 
@@ -440,8 +511,8 @@ def test_server_training_against_an_external_team(tmp_path: Path) -> None:
                f"{sys.executable} {fake} --port {{port}} --team {{team}} --players 2",
            "server.opponent_name": "fake"},
     )
-    result = train_robocup(config, print_fn=lambda _: None)
-    assert result.iterations == 2 and result.restarts == 0
+    result = train_robocup(config, progress=False)
+    assert result.iteration == 2 and result.restarts == 0
     with (tmp_path / "run" / EPISODES_CSV).open() as f:
         rows = list(csv.DictReader(f))
     assert [r["learner_side"] for r in rows] == ["0", "0"]
@@ -462,7 +533,7 @@ def test_server_training_names_an_opponent_command_that_does_not_exist_at_once(
     )
     began = time.monotonic()
     with pytest.raises(TeamCommandNotFound, match="start command failed .status 127."):
-        train_robocup(config, print_fn=lambda _: None)
+        train_robocup(config, progress=False)
     assert time.monotonic() - began < 60.0
 
 
@@ -471,7 +542,7 @@ def test_server_naive_plays_random() -> None:
     results = play_robocup(
         "naive", "random", players_per_team=1, episodes=1, episode_length=60,
         action="thesis12", rcssserver=os.environ.get("ELEVENS_RCSSSERVER"),
-        print_fn=lambda _: None,
+        progress=False,
     )
     assert results[0].steps == 60 and results[0].restarts == 0
 
@@ -494,14 +565,14 @@ def test_init_from_a_checkpoint_starts_from_its_networks_and_resumes_with_them(
     networks = {"network.features": 16, "network.num_heads": 2, "network.lstm_features": 8}
     with pytest.raises(RunRefusedError, match="other networks.*--network.features 16"):
         train_robocup(small_config(tmp_path, **{"run.init_from": str(tmp_path / "source")}),
-                      env_factory=lambda i: SimEnv(1), print_fn=lambda _: None)
+                      env_factory=lambda i: SimEnv(1), progress=False)
     # No time to play: the run saves its starting point, which must be the source's networks.
     target = small_config(
         tmp_path, **{"run.init_from": str(tmp_path / "source"), "run.max_minutes": 1e-9,
                      **networks}
     )
-    result = train_robocup(target, env_factory=lambda i: SimEnv(1), print_fn=lambda _: None)
-    assert result.iterations == 0
+    result = train_robocup(target, env_factory=lambda i: SimEnv(1), progress=False)
+    assert result.iteration == 0
     _, expected = load_learner_params(str(tmp_path / "source"))
     _, started = load_learner_params(str(tmp_path / "run"))
     for a, b in zip(jax.tree.leaves(expected), jax.tree.leaves(started), strict=True):
@@ -511,9 +582,9 @@ def test_init_from_a_checkpoint_starts_from_its_networks_and_resumes_with_them(
     # A resume keeps the networks (a resume ignores init_from, as elevens train does).
     resumed = train_robocup(
         small_config(tmp_path, **{"run.max_minutes": 1e-9, **networks}), resume=True,
-        env_factory=lambda i: SimEnv(1), print_fn=lambda _: None,
+        env_factory=lambda i: SimEnv(1), progress=False,
     )
-    assert resumed.iterations == 0 and not resumed.interrupted
+    assert resumed.iteration == 0 and not resumed.interrupted
     saved = json.loads((tmp_path / "run" / "config.json").read_text())
     assert saved["learner"]["network"]["features"] == 16
     assert saved["learner"]["network"]["lstm_features"] == 8

@@ -247,7 +247,7 @@ def train(args: RoboCupTrainArgs) -> None:
     except CheckpointError as error:  # a damaged checkpoint: the message names the file
         exit_with_error("elevens robocup train: error", error, 2)
     print(
-        f"robocup train: {result.iterations} iterations, {result.env_steps} env steps, "
+        f"robocup train: {result.iteration} iterations, {result.env_steps} env steps, "
         f"{result.episodes} episodes, {result.restarts} server restarts in {result.wall_s:.0f} s; "
         f"checkpoint {result.checkpoint}"
     )

@@ -12,15 +12,22 @@ run directory (checkpoints go through Orbax's multi-process path) and evaluates.
 
 Evaluation plays the learner as a ``NetworkTeam`` that SAMPLES its actions by default
 (``run.eval_deterministic``): that is the policy PPO trained and the one the opponents meet.
+
+A run whose games cannot be compiled (another program plays them, e.g. the official server
+through the wing above) passes ``HostGames``: the loop is the same, and each iteration of a chunk is
+the learner's ``iteration`` with the host's ``collect`` in place of the compiled rollout.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import functools
 import math
 import signal
 import time
 from collections.abc import Callable, Mapping
+from contextlib import AbstractContextManager
 from pathlib import Path
 from typing import Any
 
@@ -54,6 +61,7 @@ from elevens.train.learner import (
     metric_label,
     opponent_index_count,
 )
+from elevens.train.rollout import Rollout
 
 Metrics = dict[str, jax.Array]
 ChunkHook = Callable[[TrainState, Mapping[str, float]], None]
@@ -66,7 +74,29 @@ PROGRESS_METRICS = (
     "eval/teamwork/outcome",
 )
 
-__all__ = ["RunRefusedError", "TrainResult", "evaluate", "evaluation_team", "train"]
+__all__ = [
+    "Collect", "HostGames", "RunRefusedError", "TrainResult", "evaluate", "evaluation_team",
+    "train",
+]
+
+Collect = Callable[[TrainState, jax.Array], tuple[Rollout, dict[str, float]]]
+"""One iteration's games played on the host: ``(state, rollout key) -> (rollout, row)``, the
+``Rollout`` the compiled ``collect`` would return for ``state`` (the learner's and the
+opponent's params, the shaping in force) and host metrics logged with the iteration."""
+
+
+@dataclasses.dataclass(frozen=True)
+class HostGames:
+    """Where a run plays its games when they cannot be compiled (another program plays them).
+    Every iteration is then ``learner.iteration``'s order with ``collect`` on the host: the
+    state's key split in four, ``collect(state, rollout key)``, the learner's jitted
+    ``improve``."""
+
+    make_learner: Callable[[LearnerConfig], Learner]
+    """Builds the run's learner (one game size: a mix of sizes is the simulator's)."""
+    open: Callable[[Learner], AbstractContextManager[Collect]]
+    """Entered once the run directory is accepted and the untrained networks evaluated (start
+    the servers there), left when the iterations end, also on an error or Ctrl-C."""
 
 
 @dataclasses.dataclass
@@ -108,6 +138,7 @@ def train(
     progress: bool = True,
     on_chunk: ChunkHook | None = None,
     resume_from_last_good: bool = False,
+    host: HostGames | None = None,
 ) -> TrainResult:
     """Train ``config`` from scratch (or from the latest checkpoint in its run_dir, ``resume``).
 
@@ -125,21 +156,25 @@ def train(
             intact one; the damaged ones after it move to ``run_dir/damaged_checkpoints``
             (kept, not deleted). Without it a damaged latest checkpoint is a
             ``CheckpointError`` that names it and the newest intact one.
+        host: play the games on the host instead of in the compiled chunk (``HostGames``).
     """
     validate(config)
     started = time.perf_counter()
-    run = open_run(config, resume, resume_from_last_good, progress)
+    run = open_run(config, resume, resume_from_last_good, progress, host)
     stop_signals = _StopSignals() if run.processes > 1 else None
     try:
-        try:
-            if run.iteration == 0 and config.run.eval_every > 0 and run.lead:
-                run.evaluate_baseline()
-            while run.iteration < config.run.iterations:
-                if not run.may_continue(stop_signals):
-                    break
-                run.chunk(on_chunk)
-        except KeyboardInterrupt:
-            run.interrupted = True
+        with contextlib.ExitStack() as games:
+            try:
+                if run.iteration == 0 and config.run.eval_every > 0 and run.lead:
+                    run.evaluate_baseline()
+                if host is not None:
+                    run.collect = games.enter_context(host.open(run.learner))
+                while run.iteration < config.run.iterations:
+                    if not run.may_continue(stop_signals):
+                        break
+                    run.chunk(on_chunk)
+            except KeyboardInterrupt:
+                run.interrupted = True
         files = run.finish()
     finally:
         if stop_signals is not None:
@@ -174,10 +209,12 @@ class Resumed:
 
 
 def open_run(
-    config: TrainConfig, resume: bool, resume_from_last_good: bool, progress: bool = True
+    config: TrainConfig, resume: bool, resume_from_last_good: bool, progress: bool = True,
+    host: HostGames | None = None,
 ) -> _Run:
     """Open ``config``'s run directory: refuse a mismatched resume (or an overwrite) before
-    anything compiles, build the learners (one per game size of a mixed run) and restore."""
+    anything compiles, build the learners (one per game size of a mixed run; ``host``'s
+    one) and restore."""
     from elevens.runs.teams import team_on_field
     from elevens.train.checkpoint import Checkpointer
 
@@ -190,11 +227,17 @@ def open_run(
         damage = _resume_damage(checkpointer, config) if latest is not None else None
         for team in config.run.eval_teams:  # a bad spec fails here, before anything compiles
             evaluation_team(team, config.learner.env.game, game_actions(config.learner))
+        if host is not None and config.learner.env.mix:
+            raise ValueError(
+                f"env.mix={config.learner.env.mix!r} is invalid when the games are played on "
+                "the host: they have one game size; leave it out"
+            )
         start = None
         if config.run.init_from and latest is None:
             _, start = load_start_params(config.run.init_from, config)
         learners = {
             game: make_learner(learner, team_on_field, devices=config.run.devices)
+            if host is None else host.make_learner(learner)
             for game, learner in game_configs(config.learner).items()
         }
         fresh = learners[config.learner.env.scenario].init(jax.random.key(config.run.seed), start)
@@ -308,6 +351,8 @@ class _Run:
         self.budget_s = run.max_minutes * 60.0 if run.max_minutes > 0 else math.inf
         self.checkpoint_path: Path | None = None
         self.compiled: set[str] = set()
+        self.collect: Collect | None = None
+        """Set while ``HostGames`` plays the games (``train``)."""
         resumed_at = self.iteration if resumed.resuming else None
         self.logger: Any = RunLogger(layout.root, resumed_at=resumed_at) if self.lead else _Silent()
         if resumed.fallback:
@@ -405,17 +450,22 @@ class _Run:
         run = self.config.run
         count = min(self.chunk_length, run.iterations - self.iteration)
         game = self.schedule[self.iteration // self.chunk_length]
-        if game not in self.compiled:
+        if game not in self.compiled and self.collect is not None:
+            self.bar.note(f"playing the first {game} iteration: the update compiles after it")
+        elif game not in self.compiled:
             self.bar.note(
                 f"compiling the {game} training chunk ({count} iteration"
                 f"{'s' if count > 1 else ''}): once per run and size, from about 20 s "
                 "for 1 v 1 to one or two minutes for 11 v 11 on a 2-core CPU"
             )
         began = time.perf_counter()
-        new_state, metrics = self.learners[game].update(
-            with_games(self.state, self.configs[game]), count
-        )
-        rows = _host_metrics(metrics)  # blocks until the chunk is done
+        if self.collect is None:
+            new_state, metrics = self.learners[game].update(
+                with_games(self.state, self.configs[game]), count
+            )
+            rows = _host_metrics(metrics)  # blocks until the chunk is done
+        else:
+            new_state, rows = self.host_iterations(self.collect, count)
         seconds = time.perf_counter() - began
         if game not in self.compiled:
             self.compiled.add(game)
@@ -432,6 +482,21 @@ class _Run:
             self.checkpoint_path = self.save()
         if on_chunk is not None:
             on_chunk(self.state, shown)
+
+    def host_iterations(
+        self, collect: Collect, count: int
+    ) -> tuple[TrainState, list[dict[str, float]]]:
+        """``count`` iterations as ``learner.iteration`` runs them, the games played by
+        ``collect`` on the host: the same keys, the same ``improve``."""
+        state, rows = self.state, []
+        for _ in range(count):
+            key, rollout_key, shuffle_key, opponent_key = jax.random.split(state.key, 4)
+            data, row = collect(state, rollout_key)
+            state, metrics = _improve(self.learner)(
+                state.replace(key=key), data, shuffle_key, opponent_key
+            )
+            rows.append({**{name: float(value) for name, value in metrics.items()}, **row})
+        return state, rows
 
     def finish(self) -> dict[str, Path]:
         """The final checkpoint (also after Ctrl-C), evaluation, learning curve and GIF."""
@@ -576,6 +641,13 @@ def with_games(state: TrainState, config: LearnerConfig) -> TrainState:
     if state.opponent.indices.shape == (games,):
         return state
     return state.replace(opponent=state.opponent.replace(indices=jnp.zeros((games,), jnp.int32)))
+
+
+@functools.lru_cache(maxsize=8)
+def _improve(learner: Learner) -> Callable[..., tuple[TrainState, Metrics]]:
+    """The learner's ``improve``, jitted once per learner (a resume in the same process reuses
+    it, as ``make_learner``'s cache does the compiled chunk)."""
+    return jax.jit(learner.improve)
 
 
 def _host_metrics(metrics: Metrics) -> list[dict[str, float]]:

@@ -29,7 +29,7 @@ from flax import struct
 
 from elevens.env.params import EnvParams
 from elevens.env.soccer import Soccer
-from elevens.env.state import GlobalState, Observation, State
+from elevens.env.state import GlobalState, Observation
 from elevens.nets.policy import AttentionPolicy, PolicyCarry
 from elevens.play import (
     Actor,
@@ -101,8 +101,10 @@ class FixedOpponent:
     games: int
 
 
-class _StepRecord(struct.PyTreeNode):
-    """One step of every game, as the scan stacks it (leading [T, G, ...] after the scan)."""
+class StepRecord(struct.PyTreeNode):
+    """One step of every game, as the scan stacks it (leading [T, G, ...] after the scan);
+    a run whose games another program plays records their steps in it too and packs them with
+    ``collected``."""
 
     obs: Observation  # leading [G, n]
     global_state: GlobalState  # leading [G]
@@ -117,6 +119,7 @@ class _StepRecord(struct.PyTreeNode):
     approach_shaping: jax.Array  # f32[G, n]
     possession_shaping: jax.Array  # f32[G, n]
     holder: jax.Array  # f32[G]
+    scripted: jax.Array | None = None  # bool[G, n] a routine played (the server's); None: never
 
 
 def _to_units(leaf: jax.Array, n: int) -> jax.Array:
@@ -191,14 +194,18 @@ def rollout(
         env, params, learner, opponent, states, side, step_keys,
         functools.partial(_learner_record, env, params), constrain_games,
     )
-    return _collected(history, final.state, side, learner.init_carry(num_games, n), n)
+    score = final.state.score  # i32[G, 2] by side
+    goals_for = jnp.where(side == 0, score[:, 0], score[:, 1])
+    goals_against = jnp.where(side == 0, score[:, 1], score[:, 0])
+    initial_carry = learner.init_carry(num_games, n)
+    return collected(history, goals_for, goals_against, side, initial_carry, n)
 
 
-def _learner_record(env: Soccer, params: EnvParams, view: StepView) -> _StepRecord:
+def _learner_record(env: Soccer, params: EnvParams, view: StepView) -> StepRecord:
     """What a training step keeps: the learner's side of everything."""
     side = view.home_side
     global_state = jax.vmap(env.global_state, in_axes=(0, None))(view.state, params)
-    return _StepRecord(
+    return StepRecord(
         obs=view.home_obs,
         global_state=pick_side(global_state, side),
         pre_tanh=view.home_extras.pre_tanh,
@@ -215,10 +222,13 @@ def _learner_record(env: Soccer, params: EnvParams, view: StepView) -> _StepReco
     )
 
 
-def _collected(
-    history: _StepRecord, final: State, side: jax.Array, initial_carry: PolicyCarry, n: int
+def collected(
+    history: StepRecord, goals_for: jax.Array, goals_against: jax.Array, side: jax.Array,
+    initial_carry: PolicyCarry, n: int,
 ) -> Rollout:
-    """The scan's [T, G, ...] records as the learner's Rollout ([U, T] player sequences)."""
+    """The [T, G, ...] step records as the learner's Rollout ([U, T] player sequences);
+    ``goals_for``/``goals_against`` i32[G] are the learner's, ``initial_carry`` leading
+    [G, n]."""
     num_games = side.shape[0]
     per_player = lambda leaf: _to_units(leaf, n)  # noqa: E731
     per_game = lambda leaf: jnp.moveaxis(leaf, 0, 1)  # [T, G, ...] -> [G, T, ...]  # noqa: E731
@@ -237,9 +247,7 @@ def _collected(
             lambda leaf: leaf.reshape(num_games * n, *leaf.shape[2:]), initial_carry
         ),
     )
-    score = final.score  # i32[G, 2] by side
-    goals_for = jnp.where(side == 0, score[:, 0], score[:, 1])
-    goals_against = jnp.where(side == 0, score[:, 1], score[:, 0])
+    scripted = None if history.scripted is None else per_player(history.scripted)
     return Rollout(
         transitions=transitions,
         learner_side=side,
@@ -251,4 +259,5 @@ def _collected(
         approach_shaping=jnp.mean(jnp.sum(history.approach_shaping, axis=0), axis=-1),
         possession_shaping=jnp.sum(history.possession_shaping[:, :, 0], axis=0),
         possession=jnp.mean(history.holder, axis=0),
+        scripted=scripted,
     )

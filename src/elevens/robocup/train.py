@@ -6,9 +6,8 @@ on the host (a separate process cannot be compiled), recorded and packed as the 
 rollout's are; the run is ``elevens.runs.loop.train``'s with these games in place of the
 compiled ones (``HostGames``): the learner's ``improve``, logs, checkpoints, resume, time budget.
 
-Every game is reset at the start of an iteration and ends after ``episode_length`` steps. If a
-server dies mid-episode, RoboCupEnv restarts it and starts a fresh episode; that step is marked
-as an episode end and the next one as a start, so the advantages never run across it.
+Every game is reset at the start of an iteration and ends after ``episode_length`` steps. A
+server that dies mid-episode is restarted with a fresh episode, marked as an end and a start.
 """
 
 from __future__ import annotations
@@ -106,11 +105,7 @@ SERVER_GAME_FIELDS = (
     "ball_shaping_weight", "approach_shaping_weight", "possession_shaping_weight",
     "possession_radius", "possession_by",
 )
-
-
-ROBOCUP_CONFIG_JSON = "robocup_config.json"
-"""The run directory's file with the whole ``RoboCupTrainConfig`` (beside config.json)."""
-
+ROBOCUP_CONFIG_JSON = "robocup_config.json"  # the whole RoboCupTrainConfig, beside config.json
 # The EnvConfig fields that only the simulator's game reads (EnvConfig.game and the shaping
 # schedule's are honoured); robocup train refuses them rather than ignore them.
 SERVER_ENV_FIELDS = ("mix", "mix_shares", "physics")

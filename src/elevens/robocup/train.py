@@ -546,6 +546,7 @@ class _RoboCupLoop:
         state: Any, resumed: bool, print_fn: Callable[[str], None], began: float,
     ) -> None:
         from elevens.runs.logging import RunLogger
+        from elevens.runs.resume import resume_line
 
         self.config, self.layout, self.checkpointer = config, layout, checkpointer
         self.saved_config = config.train_config()  # what every checkpoint saves
@@ -563,6 +564,8 @@ class _RoboCupLoop:
         self.games = config.learner.games_per_iteration
         self.steps = self.games * config.learner.env.game.episode_length
         self.iteration = self.start_iteration = int(state.iteration)
+        if resumed:  # this loop does not count training time across sessions
+            print_fn(resume_line(layout.root, self.iteration, self.iteration * self.steps, None))
         self.last_saved = self.iteration if resumed else None
         self.episodes = self.restarts = 0
         self.interrupted = False

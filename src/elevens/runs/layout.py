@@ -13,6 +13,7 @@
       learner_vs_naive.gif     one game of the final learner
       robocup_config.json      elevens robocup train: its whole RoboCupTrainConfig
       episodes.csv             elevens robocup train: one row per server game
+      lock                     the process id of the run that holds the directory (flock)
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ LEARNING_CURVE = "learning_curve.png"
 GIF_NAME = "learner_vs_naive.gif"
 ROBOCUP_CONFIG_JSON = "robocup_config.json"
 EPISODES_CSV = "episodes.csv"
+LOCK_FILE = "lock"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -71,3 +73,7 @@ class RunLayout:
     @property
     def episodes_csv(self) -> Path:
         return self.root / EPISODES_CSV
+
+    @property
+    def lock(self) -> Path:
+        return self.root / LOCK_FILE

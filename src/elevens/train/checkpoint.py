@@ -46,7 +46,7 @@ import shutil
 import sys
 import threading
 import zlib
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -338,6 +338,7 @@ class Checkpointer:
         self.directory = Path(directory).absolute()
         self.max_to_keep = max_to_keep
         self._manager: ocp.CheckpointManager | None = None
+        self._on_close: list[Callable[[], None]] = []
 
     # -- Orbax plumbing ---------------------------------------------------------------------
 
@@ -605,10 +606,18 @@ class Checkpointer:
             self._manager.wait_until_finished()
 
     def close(self) -> None:
-        """Releases Orbax's resources; the checkpointer can still be used afterwards."""
+        """Releases Orbax's resources (and whatever ``release_on_close`` was given); the
+        checkpointer can still be used afterwards."""
         if self._manager is not None:
             self._manager.close()
             self._manager = None
+        while self._on_close:
+            self._on_close.pop()()
+
+    def release_on_close(self, release: Callable[[], None]) -> None:
+        """Call ``release`` at the next ``close``: a run directory's lock is held for as long
+        as the run's checkpointer is open."""
+        self._on_close.append(release)
 
     def __enter__(self) -> Checkpointer:
         return self

@@ -4,13 +4,11 @@ says where it continues from, and a damaged checkpoint is one line on stderr."""
 from __future__ import annotations
 
 import asyncio
-import io
 import os
 import signal
 import subprocess
 import sys
 import threading
-import traceback
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -184,54 +182,48 @@ def test_a_truncated_checkpoint_is_one_stderr_line_and_a_resume_says_where_it_go
         f"{saved['train_seconds'] / 60:.1f} min of training)"
     )
     assert expected in capsys.readouterr().out.splitlines()
-    # Truncate the largest array file of the newest checkpoint: Orbax's read of it fails while
+    # Truncate the largest array data file of the newest checkpoint: Orbax's read of it fails while
     # its other reads are in flight (their callbacks used to print hundreds of tracebacks).
-    data = max(
-        (path for path in (tmp_path / "checkpoints" / "4" / "state").rglob("*") if path.is_file()),
-        key=lambda path: path.stat().st_size,
-    )
-    os.truncate(data, data.stat().st_size // 3)
+    state = tmp_path / "checkpoints" / "4" / "state"
+    data = max(state.glob("ocdbt.process_0/d/*"), key=lambda path: path.stat().st_size)
+    os.truncate(data, 100)
     command = [
         sys.executable, "-m", "elevens", "train", "quickstart", "--resume", "--no-progress",
         *_flags({**BASE, **overrides, "run.iterations": 6, "run.run_dir": str(tmp_path)}),
     ]
-    finished = subprocess.run(command, capture_output=True, text=True, env=ENV, timeout=WAIT_S)
-    assert finished.returncode == 2, finished.stderr[-2000:]
-    lines = finished.stderr.splitlines()
-    assert len(lines) <= 2, f"{len(lines)} stderr lines: {finished.stderr[-2000:]}"
-    assert lines[-1].startswith("elevens train: error: corrupt checkpoint")
-    assert "pass --resume-from-last-good" in lines[-1]
+    for _ in range(3):  # the stray callbacks race the process's exit: not every try has them
+        finished = subprocess.run(
+            command, capture_output=True, text=True, env=ENV, timeout=WAIT_S
+        )
+        assert finished.returncode == 2, finished.stderr[-2000:]
+        lines = finished.stderr.splitlines()
+        assert len(lines) <= 2, f"{len(lines)} stderr lines: {finished.stderr[-2000:]}"
+        assert lines[-1].startswith("elevens train: error: corrupt checkpoint")
+        assert "pass --resume-from-last-good" in lines[-1]
 
 
-def test_tracebacks_of_a_closed_event_loop_from_other_threads_are_dropped() -> None:
-    sink = io.StringIO()
-    quiet = checkpoint_module._QuietStrayLoopErrors(sink)
+def test_only_the_closed_event_loops_unraisable_errors_are_dropped(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    reported: list[str] = []
+    monkeypatch.setattr(sys, "unraisablehook", lambda args: reported.append(str(args.exc_value)))
+    checkpoint_module._quiet_stray_loop_errors()
+    checkpoint_module._quiet_stray_loop_errors()  # once: not a hook around a hook
     loop = asyncio.new_event_loop()
     loop.close()
 
-    def stray_callback() -> None:  # what a tensorstore thread does after Orbax closed its loop
-        try:
-            loop.call_soon_threadsafe(print)
-        except RuntimeError:
-            traceback.print_exc(file=quiet)  # type: ignore[arg-type]
+    class Stray:  # raises where Python cannot raise: what a tensorstore callback does
+        def __init__(self, action: Any) -> None:
+            self.action = action
 
-    def other_error() -> None:
-        try:
-            raise KeyError("kept")
-        except KeyError:
-            traceback.print_exc(file=quiet)  # type: ignore[arg-type]
-        quiet.write("a plain line\n")
+        def __del__(self) -> None:
+            self.action()
 
-    for target in (stray_callback, other_error, stray_callback):
-        thread = threading.Thread(target=target)
+    def other() -> None:
+        raise KeyError("kept")
+
+    for action in (lambda: loop.call_soon_threadsafe(print), other):
+        thread = threading.Thread(target=Stray, args=(action,))
         thread.start()
         thread.join()
-    try:
-        loop.call_soon_threadsafe(print)
-    except RuntimeError:
-        traceback.print_exc(file=quiet)  # type: ignore[arg-type]  # the main thread's: kept
-    text = sink.getvalue()
-    assert quiet.dropped == 2
-    assert text.count("Traceback (most recent call last)") == 2
-    assert "KeyError: 'kept'\na plain line\n" in text
-    assert text.count("RuntimeError: Event loop is closed") == 1
+    assert reported == ["'kept'"]

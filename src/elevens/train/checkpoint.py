@@ -44,7 +44,6 @@ import json
 import os
 import shutil
 import sys
-import threading
 import zlib
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -82,58 +81,30 @@ class CheckpointError(RuntimeError):
 # Orbax's stray callbacks after a failed read
 # --------------------------------------------------------------------------------------------
 
-_STRAY_ERROR = "RuntimeError: Event loop is closed"
-_TRACEBACK_HEAD = "Traceback (most recent call last):"
 
-
-class _QuietStrayLoopErrors:
-    """``sys.stderr`` without the tracebacks of Orbax's dead event loop.
-
-    When one read of a restore fails, Orbax closes its event loop while tensorstore's other
-    reads are still in flight; each of them then calls ``loop.call_soon_threadsafe`` from a
-    tensorstore thread and prints a ``RuntimeError: Event loop is closed`` traceback (hundreds
-    of lines before the one that names the damage). This stream holds back a traceback written
-    by a thread other than the main one until its last line, and drops it if that line is the
-    closed loop's; everything else passes through unchanged."""
-
-    def __init__(self, stream: Any) -> None:
-        self.stream = stream
-        self._lock = threading.Lock()
-        self._held: dict[int, str] = {}  # thread -> the traceback it is writing
-        self.dropped = 0
-
-    def write(self, text: str) -> int:
-        if threading.current_thread() is threading.main_thread():
-            return int(self.stream.write(text))
-        ident = threading.get_ident()
-        with self._lock:
-            held = self._held.pop(ident, None)
-        if held is None and not text.startswith(_TRACEBACK_HEAD):
-            return int(self.stream.write(text))
-        held = (held or "") + text
-        lines = held.split("\n")
-        for index, line in enumerate(lines[1:-1], start=1):  # complete lines only
-            if line and not line[0].isspace():  # the exception's line ends the traceback
-                end = len("\n".join(lines[: index + 1])) + 1
-                if line.strip() != _STRAY_ERROR:
-                    self.stream.write(held[:end])
-                else:
-                    self.dropped += 1
-                if held[end:]:
-                    self.write(held[end:])
-                return len(text)
-        with self._lock:
-            self._held[ident] = held
-        return len(text)
-
-    def __getattr__(self, name: str) -> Any:  # flush, fileno, isatty, encoding, ...
-        return getattr(self.stream, name)
+def _is_closed_loop_error(error: BaseException | None) -> bool:
+    return isinstance(error, RuntimeError) and str(error) == "Event loop is closed"
 
 
 def _quiet_stray_loop_errors() -> None:
-    """Route ``sys.stderr`` through ``_QuietStrayLoopErrors`` (once; before Orbax reads)."""
-    if not isinstance(sys.stderr, _QuietStrayLoopErrors) and sys.stderr is not None:
-        sys.stderr = _QuietStrayLoopErrors(sys.stderr)
+    """Drop the unraisable ``RuntimeError: Event loop is closed`` of Orbax's dead event loop.
+
+    When one read of a restore fails, Orbax closes its event loop while tensorstore's other
+    reads are still in flight; each of them then calls ``loop.call_soon_threadsafe`` from a
+    tensorstore thread, and Python reports the error it cannot raise there through
+    ``sys.unraisablehook``: hundreds of tracebacks before the one line that names the damage.
+    Every other unraisable exception goes on to the hook that was in place. Installed (once per
+    hook) before each restore, since a test harness may swap the hook in between."""
+    previous = sys.unraisablehook
+    if getattr(previous, "drops_closed_loop_errors", False):
+        return
+
+    def hook(unraisable: Any) -> None:
+        if not _is_closed_loop_error(unraisable.exc_value):
+            previous(unraisable)
+
+    hook.drops_closed_loop_errors = True  # type: ignore[attr-defined]
+    sys.unraisablehook = hook
 
 
 # --------------------------------------------------------------------------------------------

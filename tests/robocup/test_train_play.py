@@ -252,8 +252,11 @@ def test_train_writes_episodes_checkpoints_and_resumes(tmp_path: Path) -> None:
     assert "ppo.learning_rate: 0.0001 -> 0.0003" in str(refused.value)
     assert len(envs) == started
     more = small_config(tmp_path, **{"run.iterations": 3})
+    before = len(lines)
     resumed = train_robocup(more, resume=True, env_factory=factory, print_fn=lines.append)
     assert resumed.iterations == 3 and resumed.episodes == 2
+    # 2 games of 12 steps an iteration: 48 env steps at iteration 2.
+    assert lines[before] == f"resuming {run} from iteration 2 (48 env steps)"
     assert (run / "checkpoints" / "3").is_dir()
     # The checkpoint is a normal one: it loads as a team for the simulator and the server.
     team = load_robocup_team(str(run), "sim")

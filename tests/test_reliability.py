@@ -274,3 +274,94 @@ def test_mutated_checkpoints_raise_only_checkpoint_errors(
     # A mutation the checksums cannot see (metadata Orbax ignores) restores the saved values.
     np.testing.assert_array_equal(state["w"], np.arange(64, dtype=np.float32))
     assert config == {"name": "tiny"}
+
+
+# --------------------------------------------------------------------------------------------
+# Refused before the work: sizes, output paths, names
+# --------------------------------------------------------------------------------------------
+
+COMPILES: list[str] = []
+"""Every XLA compile of this process, by its monitoring event (registered once, below)."""
+
+
+def _count_compiles() -> None:
+    import jax.monitoring
+
+    if not getattr(_count_compiles, "registered", False):
+        jax.monitoring.register_event_duration_secs_listener(
+            lambda event, duration, **kwargs: COMPILES.append(event)
+            if event == "/jax/core/compile/backend_compile_duration" else None
+        )
+        _count_compiles.registered = True  # type: ignore[attr-defined]
+
+
+def _a_run_with_metrics(folder: Path) -> Path:
+    folder.mkdir()
+    (folder / "metrics.csv").write_text(
+        "step,name,value\n1,eval/random/outcome,0.5\n2,eval/random/outcome,0.6\n"
+    )
+    return folder
+
+
+BEFORE_THE_WORK = [
+    (["play", "--players", "1", "--steps", "99999999999"], "--steps=99999999999"),
+    (["play", "--players", "1", "--steps", "4", "--out", "/proc/nope/x.gif"],
+     "--out '/proc/nope/x.gif' cannot be written"),
+    (["play", "--players", "1", "--steps", "4", "--out", "a_file/x.gif"], "a_file is a file"),
+    (["bench", "env", "--players", "1", "--batch", "2000000000"], "--batch 2000000000 needs"),
+    (["bench", "env", "--players", "1", "--batch", "4", "--plot", "out.txt"],
+     "--plot 'out.txt' is invalid: the suffix must be .png"),
+    (["tournament", "naive", "random", "--players", "1", "--games", "2", "--out", "a_file"],
+     "--out 'a_file' is a file"),
+    (["tournament", "naive", "random", "--players", "1", "--games", "2", "--anchor", "wizards"],
+     "--anchor 'wizards' is not one of the teams: naive, random"),
+    (["analyze", "naive", "--against", "random", "--players", "1", "--out", "a_file"],
+     "--out 'a_file' is a file"),
+    (["train", "quickstart", "--run.run-dir", "a_file"], "a_file' is not a directory"),
+    (["train", "quickstart", "--resume", "--run.run-dir", "no_such_run"],
+     "no_such_run holds no run"),
+    (["render", "game.npz", "--out", "r.avi"], "--out 'r.avi' is invalid: the suffix must be"),
+    (["render", "empty_folder"], "empty_folder is a folder"),
+    (["curves", "run", "--against", "wizards"], "run run has no metric 'eval/wizards/outcome'"),
+    (["curves", "run", "--out", "curves.txt"], "--out 'curves.txt' is invalid"),
+    (["curves", "real.npz"], "real.npz is not a metrics.csv (not text)"),
+]
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"), BEFORE_THE_WORK, ids=[" ".join(argv) for argv, _ in BEFORE_THE_WORK]
+)
+def test_bad_sizes_paths_and_names_are_one_line_before_any_compile(
+    argv: list[str], message: str, capsys: pytest.CaptureFixture[str], tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "a_file").write_text("x")
+    (tmp_path / "empty_folder").mkdir()
+    np.savez(tmp_path / "real.npz", a=np.arange(3))
+    _a_run_with_metrics(tmp_path / "run")
+    _count_compiles()
+    compiled = len(COMPILES)
+    with pytest.raises(SystemExit) as exit_info:
+        main(argv)
+    assert exit_info.value.code == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], lines
+    assert len(COMPILES) == compiled, "compiled before refusing"
+    assert not (tmp_path / "no_such_run").exists()
+
+
+def test_ctrl_c_on_view_exits_130(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from elevens.eval import viewer
+
+    def ctrl_c(self: Any) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(viewer.ReplayServer, "serve_forever", ctrl_c)
+    path = save_replay(small_replay(), tmp_path / "game.npz")
+    with pytest.raises(SystemExit) as exit_info:
+        main(["view", str(path), "--port", "0"])
+    assert exit_info.value.code == 130
+    assert capsys.readouterr().err.strip() == "elevens view: interrupted"

@@ -47,8 +47,9 @@ def process_running(pid: int) -> bool:
     return True
 
 
-def wait_stopped(pid: int, timeout_s: float = 5.0) -> bool:
-    """Whether process ``pid`` has stopped within ``timeout_s`` (polled)."""
+def wait_stopped(pid: int, timeout_s: float = 300.0) -> bool:
+    """Whether process ``pid`` has stopped within ``timeout_s`` (polled; it returns as soon
+    as it has, the bound only ends the wait for one that never stops)."""
     deadline = time.monotonic() + timeout_s
     while process_running(pid) and time.monotonic() < deadline:
         time.sleep(0.05)

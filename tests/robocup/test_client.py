@@ -376,17 +376,14 @@ def test_player_that_stops_thinking_is_marked_missing_then_read_without_waiting(
         client.connect()
         client.step([None] * 4)
         server.silent.add(2)  # R1 stops getting thinks (like a red-carded player)
-        start = time.perf_counter()
         cycle = client.step([None] * 4)
-        first_wait = time.perf_counter() - start
         assert [p.thought for p in cycle.players] == [True, True, False, True]
         assert cycle.players[2].see is None and cycle.players[2].sense_body is None
-        assert cycle.missed == 1 and first_wait >= 0.25
-        start = time.perf_counter()
+        assert cycle.missed == 1 and client.stats.timeouts == 1  # it waited for R1 once
         for _ in range(5):
             cycle = client.step([Dash(10.0)] * 4)
             assert cycle.missed == 1
-        assert (time.perf_counter() - start) / 5 < 0.15  # no more waiting for it
+        # No more waiting for it: no cycle since waited for a think.
         assert client.stats.missed_thinks == 6 and client.stats.timeouts == 1
         assert server.early_dones == 0
         # It comes back: thinks again, gets its done again.
@@ -531,10 +528,9 @@ def test_server_that_stops_answering_raises_server_died(fake: Any) -> None:
         client.connect()
         client.step([None, None])
         server.frozen.set()
-        start = time.perf_counter()
-        with pytest.raises(ServerDied, match="stopped answering"):
+        # Two think timeouts (the second chance) without a think: dead.
+        with pytest.raises(ServerDied, match=r"stopped answering: .* for 0.4 s"):
             client.step([None, None])
-        assert 0.35 < time.perf_counter() - start < 2.0
         assert not client.connected
 
 
@@ -543,11 +539,14 @@ def test_closed_ports_raise_server_died_at_once(fake: Any) -> None:
     with _client(server, think_timeout_s=1.0) as client:
         client.connect()
         server.close()
-        start = time.perf_counter()
+        client._second_chance = _no_waiting  # type: ignore[method-assign]
         with pytest.raises(ServerDied):
             for _ in range(3):
                 client.step([None, None])
-        assert time.perf_counter() - start < 2.5
+
+
+def _no_waiting(*args: Any) -> None:
+    raise AssertionError("the client waited a second think timeout")
 
 
 class _DeadProcess:
@@ -568,10 +567,10 @@ def test_exited_process_raises_server_died_with_its_log(fake: Any) -> None:
         client.connect()
         server.frozen.set()
         client.server = cast(ServerProcess, _DeadProcess())
-        start = time.perf_counter()
+        client._second_chance = _no_waiting  # type: ignore[method-assign]
+        # No full timeout when the process is gone: it is noticed while waiting the first one.
         with pytest.raises(ServerDied, match=r"exited \(status -9\)[\s\S]*Waiting too long"):
             client.step([None, None])
-        assert time.perf_counter() - start < 1.0  # no full timeout when the process is gone
 
 
 def test_reconnect_after_the_server_comes_back(fake: Any) -> None:

@@ -58,20 +58,18 @@ def _fake_team(name: str = "fake", players: int = 11, real_time: bool = False) -
 
 def _slow_first_call(team: RoboCupTeam, seconds: float) -> list[float]:
     """Make the team's first policy call take ``seconds`` (as a compile would); returns the
-    list the call times go to."""
+    list each call appends to (True for the slow one)."""
     act = team.player.act
-    times: list[float] = []
+    calls: list[bool] = []
 
     def slow(carry: Any, obs: Any, key: Any) -> Any:
-        began = time.perf_counter()
-        if not times:
+        if not calls:
             time.sleep(seconds)
-        out = act(carry, obs, key)
-        times.append(time.perf_counter() - began)
-        return out
+        calls.append(not calls)
+        return act(carry, obs, key)
 
     team.player.act = slow
-    return times
+    return calls
 
 
 def _play_in_thread(team: RoboCupTeam, address: Any, **kwargs: Any) -> dict[str, Any]:
@@ -356,10 +354,9 @@ def test_a_start_command_that_fails_is_an_error_at_once_not_after_the_timeout(
     log = tmp_path / "rcssserver.log"
     log.write_text("Waiting for players to connect\n")
     proc = start_team(str(tmp_path / "missing_start.sh"), address, "H", tmp_path / "out.txt")
-    began = time.monotonic()
+    # At once: the shell's status, not the 120 s timeout's "connected 0 of 11 players".
     with pytest.raises(FileNotFoundError, match=r"start command failed \(status 127\)") as error:
         wait_connected(log, "H", 11, proc, tmp_path / "out.txt", 120.0, failed_start_grace_s=0.5)
-    assert time.monotonic() - began < 30.0
     assert "missing_start.sh" in str(error.value)  # the shell's own message, from its output
     # A launcher that exits 0 at once (start.sh leaves its players running) is waited for.
     proc = start_team("true", address, "H", tmp_path / "out2.txt")
@@ -412,11 +409,10 @@ def test_match_cli_refuses_a_used_log_folder_in_one_line(
 def test_match_cli_names_a_start_command_that_does_not_exist_at_once(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    began = time.monotonic()
     with pytest.raises(SystemExit) as exit_info:
         main(["robocup", "match", "--team1-cmd", str(tmp_path / "start.sh"),
               "--team1-name", "other", "--half-time", "3"])
-    assert exit_info.value.code == 2 and time.monotonic() - began < 60.0
+    assert exit_info.value.code == 2
     err = capsys.readouterr().err
     assert "team 'other': its start command failed (status 127)" in err
     assert "Traceback" not in err
@@ -496,7 +492,7 @@ def test_real_server_clock_and_team_stay_in_lockstep_despite_a_slow_first_call(
         team = RoboCupTeam("naive", players_per_team=11, team_name="mine")
         calls = _slow_first_call(team, 2.0)
         box = _play_in_thread(team, server.address)
-        deadline = time.monotonic() + 60
+        deadline = time.monotonic() + 600  # a bound for a stuck start, not a speed
         while "mine 11" not in (server.log_path.read_text() if server.log_path else ""):
             assert time.monotonic() < deadline and "error" not in box, box.get("error")
             time.sleep(0.05)
@@ -508,7 +504,7 @@ def test_real_server_clock_and_team_stay_in_lockstep_despite_a_slow_first_call(
         finally:
             stop_team(proc)
     result: TeamResult = box["result"]
-    assert calls[0] >= 2.0 and max(calls[1:]) < 1.0
+    assert len(calls) > 1  # the slow call, then the match's (not one of them missed a cycle)
     assert result.ended == "time_over" and result.server_time == 60 and result.missed == 0
     assert "missed a cycle" not in log
 

@@ -24,9 +24,11 @@ from elevens.train.learner import make_learner
 from tests.train.parallel_worker import TINY, process_config
 
 ROOT = Path(__file__).resolve().parents[2]
+WAIT_S = 1800.0
+"""How long a worker may take on a loaded machine: a bound for a hung one, not a speed."""
 
 
-def run_worker(*args: str, timeout: float = 240) -> subprocess.Popen[str]:
+def run_worker(*args: str, timeout: float = WAIT_S) -> subprocess.Popen[str]:
     env = {**os.environ, "PYTHONPATH": f"{ROOT}{os.pathsep}{ROOT / 'src'}"}
     env.pop("XLA_FLAGS", None)
     return subprocess.Popen(
@@ -35,7 +37,7 @@ def run_worker(*args: str, timeout: float = 240) -> subprocess.Popen[str]:
     )
 
 
-def finish(process: subprocess.Popen[str], timeout: float = 240) -> str:
+def finish(process: subprocess.Popen[str], timeout: float = WAIT_S) -> str:
     output, _ = process.communicate(timeout=timeout)
     assert process.returncode == 0, output[-3000:]
     return output
@@ -116,7 +118,7 @@ def test_elevens_train_refuses_process_flags_without_distributed() -> None:
     result = subprocess.run(
         [sys.executable, "-m", "elevens", "train", "quickstart", "--num-processes", "2"],
         cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT / "src")},
-        capture_output=True, text=True, timeout=120,
+        capture_output=True, text=True, timeout=WAIT_S,
     )
     assert result.returncode == 2
     assert "need --distributed" in result.stderr and "Traceback" not in result.stderr
@@ -134,7 +136,7 @@ def test_distributed_outside_a_cluster_job_says_what_to_give() -> None:
     result = subprocess.run(
         [sys.executable, "-m", "elevens", "train", "quickstart", "--distributed"],
         cwd=ROOT, env={**env, "PYTHONPATH": str(ROOT / "src")},
-        capture_output=True, text=True, timeout=120,
+        capture_output=True, text=True, timeout=WAIT_S,
     )
     assert result.returncode == 2, result.stderr
     line = result.stderr.strip()

@@ -9,6 +9,7 @@ the figure is the median over repeats.
 
 from __future__ import annotations
 
+import functools
 import json
 import statistics
 import time
@@ -149,6 +150,61 @@ def bench_loop(players: int, steps: int = 200, repeats: int = 5) -> EnvBenchResu
     )
 
 
+STATE_COPIES, OBSERVATION_COPIES = 3, 2
+"""What a scanned batch holds at once, per game: its state three times (the reset batch, the
+scan's carry in and out) and its observation twice (the step's and its intermediates). A lower
+bound on what XLA allocates, so a batch refused would not have run."""
+
+
+def available_memory_bytes() -> int | None:
+    """Memory the benchmark may fill: the accelerator's limit, or the host's MemAvailable
+    (None when neither can be read)."""
+    stats = jax.devices()[0].memory_stats() if jax.default_backend() != "cpu" else None
+    if stats and "bytes_limit" in stats:
+        return int(stats["bytes_limit"]) - int(stats.get("bytes_in_use", 0))
+    try:
+        for line in Path("/proc/meminfo").read_text().splitlines():
+            if line.startswith("MemAvailable:"):
+                return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return None
+
+
+def check_batches_fit(
+    players: Sequence[int], batch: Sequence[int], available: int | None = None
+) -> None:
+    """Raise ``ValueError`` (naming --batch, the estimate and the limit) for a batch whose
+    games' states cannot fit in memory. Traces one game's reset (``jax.eval_shape``): nothing
+    compiles and nothing is allocated."""
+    available = available_memory_bytes() if available is None else available
+    if available is None:
+        return
+    for n in players:
+        env, params = elevens.make(f"{n}v{n}")
+        state, observation = jax.eval_shape(functools.partial(_reset_one, env, params))
+        per_game = STATE_COPIES * _bytes(state) + OBSERVATION_COPIES * _bytes(observation)
+        for games in batch:
+            if games * per_game > available:
+                raise ValueError(
+                    f"--batch {games} needs about {_gb(games * per_game)} for {n}v{n} games "
+                    f"({_gb(per_game)} a game), more than the {_gb(available)} of memory "
+                    f"available: at most {available // per_game:,} games fit"
+                )
+
+
+def _reset_one(env: Soccer, params: EnvParams) -> tuple[State, Any]:
+    return env.reset(jax.random.key(0), params)
+
+
+def _bytes(tree: Any) -> int:
+    return sum(leaf.size * leaf.dtype.itemsize for leaf in jax.tree.leaves(tree))
+
+
+def _gb(size: float) -> str:
+    return f"{size / 1e9:.3g} GB" if size >= 1e6 else f"{size / 1e3:.3g} kB"
+
+
 def run_env_bench(
     players: Sequence[int] = (1, 2, 5, 11),
     batch: Sequence[int] = (256, 1024),
@@ -159,7 +215,9 @@ def run_env_bench(
     devices: int | None = None,
     print_fn: Callable[[str], None] = print,
 ) -> list[EnvBenchResult]:
-    """Run every configuration; print a table (or one JSON object per line) and return results."""
+    """Run every configuration; print a table (or one JSON object per line) and return results.
+    A batch that cannot fit in memory is refused first (``check_batches_fit``)."""
+    check_batches_fit(players, batch)
     results: list[EnvBenchResult] = []
     for n in players:
         loop = bench_loop(n, loop_steps, repeats)

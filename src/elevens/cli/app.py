@@ -21,8 +21,11 @@ from elevens.cli.bench import TrainBenchArgs, bench_train_command
 from elevens.cli.checks import (
     EXIT_BAD_INPUT,
     EXIT_INTERRUPTED,
+    PLOT_SUFFIXES,
+    VIDEO_SUFFIXES,
     Commands,
     check_numeric_args,
+    check_output_file,
     one_line,
     run_command,
     subcommand_union,
@@ -108,6 +111,10 @@ def play(args: PlayArgs) -> Path | None:
     """Play a game and write it to ``args.out`` (and ``args.replay``)."""
     from elevens.runs.play import play_and_render
 
+    # Before the game: a path that cannot be written is refused now, not after it.
+    check_output_file("--out", args.out, VIDEO_SUFFIXES)
+    if args.replay is not None:
+        check_output_file("--replay", args.replay, (".npz",))
     return play_and_render(
         home=args.home, away=args.away, players=args.players, out=args.out,
         seed=args.seed, steps=args.steps, fps=args.fps, scale=args.scale, view=args.view,
@@ -127,6 +134,8 @@ def export_team(args: ExportTeamArgs) -> Path:
 
 def bench_env(args: EnvBenchArgs) -> None:
     """Run the env benchmark."""
+    if args.plot is not None:
+        check_output_file("--plot", args.plot, PLOT_SUFFIXES)
     _set_host_devices(args.host_devices)
     from elevens.bench.env import run_env_bench
 

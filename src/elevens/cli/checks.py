@@ -8,7 +8,9 @@ from __future__ import annotations
 
 import math
 import sys
-from collections.abc import Callable
+import tempfile
+from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Annotated, Any, NoReturn, Union
 
 import tyro
@@ -18,6 +20,13 @@ EXIT_BAD_INPUT = 2
 missing rcssserver."""
 EXIT_INTERRUPTED = 130
 """A command stopped by Ctrl-C or SIGTERM (128 + SIGINT, as a shell reports it)."""
+LARGEST_INT = 2**31 - 1
+"""The largest whole number a flag takes: JAX counts steps, games and seeds in int32, and a
+larger one is an OverflowError deep inside a compile."""
+VIDEO_SUFFIXES = (".gif", ".mp4")
+PLOT_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".eps", ".ps", ".tif", ".tiff",
+                 ".webp")
+"""What matplotlib writes (the plots of curves, bench env --plot, tournament, analyze)."""
 
 
 def one_line(error: BaseException) -> str:
@@ -87,9 +96,56 @@ def check_numeric_args(args: object) -> None:
         low, high = NUMERIC_RANGES[field.name]
         flag = "--" + field.name.replace("_", "-")
         for number in numbers:
+            if isinstance(number, int):
+                high = min(high, LARGEST_INT)
             if not (math.isfinite(number) and low <= number <= high):
-                allowed = f">= {low:g}" if high == math.inf else f"from {low:g} to {high:g}"
+                allowed = (
+                    f">= {_number(low)}" if high == math.inf
+                    else f"from {_number(low)} to {_number(high)}"
+                )
                 raise ValueError(f"{flag}={number!r} is invalid: it must be {allowed}")
+
+
+def _number(value: float) -> str:
+    return str(int(value)) if float(value).is_integer() else f"{value:g}"
+
+
+def check_output_file(flag: str, path: Path, suffixes: Sequence[str]) -> None:
+    """Raise ``ValueError`` naming ``flag`` unless ``path`` ends in one of ``suffixes`` and can
+    be written (its folder may be missing: the command creates it): before the work whose
+    result it holds. Nothing is created."""
+    if path.suffix.lower() not in suffixes:
+        raise ValueError(
+            f"{flag} {str(path)!r} is invalid: the suffix must be {' or '.join(suffixes)}"
+        )
+    if path.is_dir():
+        raise ValueError(f"{flag} {str(path)!r} is a folder; give a file name")
+    _check_writable(flag, path, path.parent)
+
+
+def check_output_dir(flag: str, path: Path) -> None:
+    """Raise ``ValueError`` naming ``flag`` unless ``path`` is (or can be made) a folder this
+    user can write: before the games whose results go there. Nothing is created."""
+    if path.exists() and not path.is_dir():
+        raise ValueError(f"{flag} {str(path)!r} is a file; give a folder (created if missing)")
+    _check_writable(flag, path, path)
+
+
+def _check_writable(flag: str, given: Path, folder: Path) -> None:
+    """``folder``, or the nearest of its parents that exists (the rest is created later), is
+    a folder in which this user can create a file (tried: permissions alone do not tell, e.g.
+    in /proc or on a read-only mount)."""
+    existing = folder.absolute()
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        raise ValueError(f"{flag} {str(given)!r} cannot be written: {existing} is a file")
+    try:
+        with tempfile.TemporaryFile(dir=existing):
+            pass
+    except OSError as error:
+        why = error.strerror or type(error).__name__
+        raise ValueError(f"{flag} {str(given)!r} cannot be written in {existing}: {why}") from None
 
 
 Handler = Callable[[Any], Any]

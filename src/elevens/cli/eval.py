@@ -26,7 +26,15 @@ from typing import Annotated, Any
 import tyro
 
 import elevens.robocup  # noqa: F401 - registers the RoboCup wing's games, teams and shipped teams
-from elevens.cli.checks import Commands, run_command, subcommand_union
+from elevens.cli.checks import (
+    PLOT_SUFFIXES,
+    VIDEO_SUFFIXES,
+    Commands,
+    check_output_dir,
+    check_output_file,
+    run_command,
+    subcommand_union,
+)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -221,11 +229,15 @@ def tournament_command(args: TournamentArgs) -> Any:
         raise ValueError("no teams given: e.g. elevens tournament random naive teamwork")
     if args.games < 1:
         raise ValueError(f"games={args.games} is invalid: it must be >= 1")
+    check_output_dir("--out", args.out)
     console = Console()
     (teams,), env, params = _teams_and_env(
         (args.teams,), args.players, args.steps, args.deterministic, args.see_period,
         args.stamina, args.goalie,
     )
+    names = [team.name for team in teams]
+    if args.anchor is not None and args.anchor not in names:
+        raise ValueError(f"--anchor {args.anchor!r} is not one of the teams: {', '.join(names)}")
     began = time.perf_counter()
 
     def on_match(index: int, total: int, home: str, away: str, result: Any) -> None:
@@ -271,6 +283,7 @@ def analyze_command(args: AnalyzeArgs) -> Any:
         raise ValueError("no teams given: e.g. elevens analyze naive teamwork --against naive")
     if args.games < 1:
         raise ValueError(f"games={args.games} is invalid: it must be >= 1")
+    check_output_dir("--out", args.out)
     console = Console()
     (teams, (opponent,)), env, params = _teams_and_env(
         (args.teams, (args.against,)), args.players, args.steps, args.deterministic
@@ -323,6 +336,7 @@ def curves_command(args: CurvesArgs) -> Any:
 
     if not args.runs:
         raise ValueError("no run directories given: e.g. elevens curves runs/a runs/b")
+    check_output_file("--out", args.out, PLOT_SUFFIXES)
     if any("=" in run for run in args.runs):
         from elevens.runs.curves import parse_run_groups, plot_run_groups
 
@@ -352,6 +366,7 @@ def render_command(args: RenderArgs) -> Path:
     """Draw a replay to a video file."""
     from elevens.eval.replay import load_replay, render_replay
 
+    check_output_file("--out", args.out, VIDEO_SUFFIXES)
     replay = load_replay(args.replay)
     path = render_replay(replay, args.out, view=args.view, fps=args.fps, scale=args.scale,
                          progress=True, follow_ball=args.follow_ball)

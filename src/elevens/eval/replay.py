@@ -303,6 +303,8 @@ def load_replay(path: str | Path) -> Replay:
     """Read a replay file. Any problem is a ``ReplayError`` naming the path and the problem."""
     path = Path(path)
     where = str(path)
+    if path.is_dir():
+        raise ReplayError(f"{where} is a folder: give a replay file (.npz) of it")
     if not path.is_file():
         raise ReplayError(f"{where}: no such replay file")
     with path.open("rb") as handle:

@@ -261,3 +261,4 @@ def view(paths: Sequence[str | Path], port: int = 0, open_browser: bool = False)
         server.serve_forever()
     except KeyboardInterrupt:
         print("stopped")
+        raise  # the command exits 130, as every interrupted command does

@@ -64,6 +64,13 @@ def x_metric(alias: str) -> tuple[str | None, str, float, str]:
     return alias, alias, 1.0, ""
 
 
+class MissingMetricError(ValueError, KeyError):
+    """A run has not logged the metric a curve needs (bad input: the CLI reports it in one
+    line); still a ``KeyError`` for callers that look the metric up."""
+
+    __str__ = ValueError.__str__  # the message as written, not KeyError's repr of it
+
+
 def run_series(
     curves: dict[str, Any], metric: str, x_name: str | None, run: str = ""
 ) -> Series:
@@ -73,7 +80,7 @@ def run_series(
     metrics the run has.
     """
     if metric not in curves:
-        raise KeyError(
+        raise MissingMetricError(
             f"run {run or '?'} has no metric {metric!r}; it has: "
             f"{', '.join(sorted(name for name in curves if name.startswith('eval/'))) or 'none'}"
         )
@@ -83,7 +90,7 @@ def run_series(
         x = steps.astype(np.float64)
     else:
         if x_name not in curves:
-            raise KeyError(f"run {run or '?'} has no x metric {x_name!r}")
+            raise MissingMetricError(f"run {run or '?'} has no x metric {x_name!r}")
         by_step = dict(zip(curves[x_name].steps.tolist(), curves[x_name].values.tolist(),
                            strict=True))
         x = np.asarray([by_step.get(int(s), math.nan) for s in steps], np.float64)

@@ -12,6 +12,7 @@
       learning_curve.png       evaluation outcome against each team, by env steps and hours
       learner_vs_naive.gif     one game of the final learner
       episodes.csv             runs whose games are played outside the simulator: one row a game
+      lock                     the process id of the run that holds the directory (flock)
 
 A run of a wing above the core may write files of its own beside these (its whole config).
 """
@@ -28,6 +29,7 @@ METRICS_CSV = "metrics.csv"
 LEARNING_CURVE = "learning_curve.png"
 GIF_NAME = "learner_vs_naive.gif"
 EPISODES_CSV = "episodes.csv"
+LOCK_FILE = "lock"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -67,3 +69,7 @@ class RunLayout:
     @property
     def episodes_csv(self) -> Path:
         return self.root / EPISODES_CSV
+
+    @property
+    def lock(self) -> Path:
+        return self.root / LOCK_FILE

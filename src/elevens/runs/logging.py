@@ -213,11 +213,18 @@ def read_metrics_csv(path: str | os.PathLike[str]) -> dict[str, Curve]:
     if path.is_dir():
         path = path / METRICS_CSV
     per_name: dict[str, dict[int, float]] = {}
+    allowed = "give a run directory or its metrics.csv"
     with path.open(newline="", encoding="utf-8") as handle:
         reader = csv.reader(handle)
-        header = next(reader, None)
+        try:
+            header = next(reader, None)
+        except UnicodeDecodeError:
+            raise ValueError(f"{path} is not a metrics.csv (not text); {allowed}") from None
         if tuple(header or ()) != CSV_HEADER:
-            raise ValueError(f"{path}: header {header}, expected {','.join(CSV_HEADER)}")
+            raise ValueError(
+                f"{path} is not a metrics.csv (header {header}, expected "
+                f"{','.join(CSV_HEADER)}); {allowed}"
+            )
         for line_number, row in enumerate(reader, start=2):
             if not row:
                 continue

@@ -43,6 +43,7 @@ from elevens.runs.resume import (
     last_good_step,
     latest_resumable_step,
     load_start_params,
+    resume_line,
 )
 from elevens.train import parallel
 from elevens.train.config import (
@@ -363,6 +364,10 @@ class _Run:
                 run.iterations, metrics=PROGRESS_METRICS, start=self.iteration,
                 start_env_steps=self.env_steps, plain=None if progress else True,
                 plain_every=1 if progress else 10**9,
+            )
+        if resumed.resuming:
+            self.bar.note(
+                resume_line(layout.root, self.iteration, self.env_steps, self.train_seconds)
             )
 
     # -- the hooks ---------------------------------------------------------------------------

@@ -69,12 +69,13 @@ def play_and_render(
         )
     assert result.record is not None
     goals_for, goals_against = int(result.goals_for[0]), int(result.goals_against[0])
-    console.print(f"{home_name} {goals_for} : {goals_against} {away_name}", markup=False)
+    # The result on stdout (the status above is on stderr, as progress is).
+    print(f"{home_name} {goals_for} : {goals_against} {away_name}", flush=True)
     if replay is not None:
         saved = save_replay(
             replay_from_match(result, params, 0, home_name, away_name, {"seed": seed}), replay
         )
-        console.print(f"wrote {saved}", markup=False)
+        print(f"wrote {saved}", flush=True)
     if out is None:
         return None
     states = with_full_time(states_from_record(result.record, 0, params),
@@ -84,5 +85,5 @@ def play_and_render(
         scale=scale, follow_ball=follow_ball,
     )
     save_video(frames, Path(out), fps=fps)
-    console.print(f"wrote {out} ({len(frames)} frames)", markup=False)
+    print(f"wrote {out} ({len(frames)} frames)", flush=True)
     return Path(out)

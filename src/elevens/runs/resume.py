@@ -13,6 +13,7 @@ from typing import Any
 
 from elevens.runs.errors import RunRefusedError
 from elevens.runs.layout import DAMAGED_DIR
+from elevens.runs.lock import lock_run_directory
 from elevens.runs.teams import load_learner_params
 from elevens.train import parallel
 from elevens.train.config import TrainConfig, config_differences
@@ -22,16 +23,40 @@ from elevens.train.learner import LearnerParams
 def latest_resumable_step(
     checkpointer: Any, resume: bool, resume_flag: str, run_dir_flag: str
 ) -> int | None:
-    """The latest checkpoint's step, or None for an empty directory. Without ``resume`` a
-    directory that holds checkpoints is a ``RunRefusedError`` (a new run must not overwrite
-    another's); the message names the command's own flags."""
+    """Take the run directory (the parent of ``checkpointer.directory``) for this run and
+    return its latest checkpoint's step, or None for a new run.
+
+    The directory is locked (``elevens.runs.lock``, by process 0 of a multi-process run) until
+    ``checkpointer.close()``; a directory another process holds is a ``RunRefusedError`` naming
+    that process. So is a directory with checkpoints without ``resume`` (a new run must not
+    overwrite another's) and one without any with ``resume`` (a typo must not start a new run
+    from zero). The messages name the command's own flags."""
+    run_dir = Path(checkpointer.directory).parent
+    no_run = (
+        f"cannot resume: {run_dir} holds no run (no checkpoint in {checkpointer.directory}); "
+        f"check {run_dir_flag}, or start a new run there without {resume_flag}"
+    )
+    if resume and not run_dir.is_dir():
+        raise RunRefusedError(no_run)
+    if parallel.is_lead():
+        checkpointer.release_on_close(lock_run_directory(run_dir, run_dir_flag).release)
     latest = checkpointer.latest_step()
     if latest is not None and not resume:
         raise RunRefusedError(
             f"{checkpointer.directory} already holds checkpoints (latest: iteration {latest}); "
             f"pass {resume_flag} to continue that run, or choose another {run_dir_flag}"
         )
+    if latest is None and resume:
+        raise RunRefusedError(no_run)
     return latest
+
+
+def resume_line(run_dir: Path, iteration: int, env_steps: int, train_seconds: float | None) -> str:
+    """The line every resume prints: where the run continues from."""
+    minutes = "" if train_seconds is None else f", {train_seconds / 60:.1f} min of training"
+    return (
+        f"resuming {run_dir} from iteration {iteration:,} ({env_steps:,} env steps{minutes})"
+    )
 
 
 def load_start_params(text: str, config: TrainConfig) -> tuple[TrainConfig, LearnerParams]:

@@ -43,8 +43,9 @@ import enum
 import json
 import os
 import shutil
+import sys
 import zlib
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -74,6 +75,36 @@ _KIND_SCALAR = "python_scalar"
 
 class CheckpointError(RuntimeError):
     """A checkpoint exists but cannot be restored: corrupt, incomplete, or of another shape."""
+
+
+# --------------------------------------------------------------------------------------------
+# Orbax's stray callbacks after a failed read
+# --------------------------------------------------------------------------------------------
+
+
+def _is_closed_loop_error(error: BaseException | None) -> bool:
+    return isinstance(error, RuntimeError) and str(error) == "Event loop is closed"
+
+
+def _quiet_stray_loop_errors() -> None:
+    """Drop the unraisable ``RuntimeError: Event loop is closed`` of Orbax's dead event loop.
+
+    When one read of a restore fails, Orbax closes its event loop while tensorstore's other
+    reads are still in flight; each of them then calls ``loop.call_soon_threadsafe`` from a
+    tensorstore thread, and Python reports the error it cannot raise there through
+    ``sys.unraisablehook``: hundreds of tracebacks before the one line that names the damage.
+    Every other unraisable exception goes on to the hook that was in place. Installed (once per
+    hook) before each restore, since a test harness may swap the hook in between."""
+    previous = sys.unraisablehook
+    if getattr(previous, "drops_closed_loop_errors", False):
+        return
+
+    def hook(unraisable: Any) -> None:
+        if not _is_closed_loop_error(unraisable.exc_value):
+            previous(unraisable)
+
+    hook.drops_closed_loop_errors = True  # type: ignore[attr-defined]
+    sys.unraisablehook = hook
 
 
 # --------------------------------------------------------------------------------------------
@@ -278,6 +309,7 @@ class Checkpointer:
         self.directory = Path(directory).absolute()
         self.max_to_keep = max_to_keep
         self._manager: ocp.CheckpointManager | None = None
+        self._on_close: list[Callable[[], None]] = []
 
     # -- Orbax plumbing ---------------------------------------------------------------------
 
@@ -457,6 +489,7 @@ class Checkpointer:
             entry["storage_key"]: jax.ShapeDtypeStruct(tuple(data_shape), np.dtype(data_dtype))
             for entry, data_shape, data_dtype in plan
         }
+        _quiet_stray_loop_errors()
         try:
             restored = self._get_manager().restore(
                 step,
@@ -544,10 +577,18 @@ class Checkpointer:
             self._manager.wait_until_finished()
 
     def close(self) -> None:
-        """Releases Orbax's resources; the checkpointer can still be used afterwards."""
+        """Releases Orbax's resources (and whatever ``release_on_close`` was given); the
+        checkpointer can still be used afterwards."""
         if self._manager is not None:
             self._manager.close()
             self._manager = None
+        while self._on_close:
+            self._on_close.pop()()
+
+    def release_on_close(self, release: Callable[[], None]) -> None:
+        """Call ``release`` at the next ``close``: a run directory's lock is held for as long
+        as the run's checkpointer is open."""
+        self._on_close.append(release)
 
     def __enter__(self) -> Checkpointer:
         return self

@@ -1,11 +1,11 @@
 """One process per run directory: an OS file lock on ``RUN_DIR/lock``.
 
 Two runs writing one directory would log every row twice and collide on their checkpoints, so
-the process that opens a run directory (``train``, ``elevens robocup train``, a resume) holds an
-exclusive ``flock`` on its lock file until it closes the run. The kernel drops the lock when the
-process ends, however it ends (``kill -9`` too), so a lock is never stale; the file itself stays
-(removing it would let a third process lock a new file while a second still holds the old one),
-unless the directory was made for a run that was refused before it wrote anything.
+the process that opens a run directory (``train``, a server run through the same loop, a resume)
+holds an exclusive ``flock`` on its lock file until it closes the run. The kernel drops the lock
+when the process ends, however it ends (``kill -9`` too), so a lock is never stale; the file
+itself stays (removing it would let a third process lock a new file while a second still holds
+the old one), unless the directory was made for a run that was refused before it wrote anything.
 The file holds the holder's process id, for the message of the process that is refused.
 """
 

@@ -28,6 +28,7 @@ def rcss_tiny(run_dir: Path | str = "unused", **overrides: Any) -> TrainConfig:
                            {**RCSS, **overrides})
 
 
+@pytest.mark.slow
 def test_a_run_with_the_servers_bodies_trains_a_team_for_rcssserver(tmp_path: Path) -> None:
     from elevens.robocup.env import RoboCupConfig, robocup_env_params
     from elevens.robocup.observe import PerceptMemory
@@ -105,6 +106,7 @@ def test_the_goalie_routine_needs_a_player_for_the_policy() -> None:
         validate(rcss_tiny(**{"env.goalie": True}))
 
 
+@pytest.mark.slow
 def test_with_the_goalie_routine_the_goalies_samples_leave_the_policy_loss() -> None:
     """The routine plays player 0 whatever the policy sampled for it: those samples must not
     move the policy (they used to, one player in n), while the critic still learns there."""

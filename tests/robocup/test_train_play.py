@@ -290,6 +290,7 @@ class KickScoreEnv(SimEnv):
         return state, obs, rewards, done, info
 
 
+@pytest.mark.slow
 def test_a_12_value_policy_learns_in_the_server_loop(tmp_path: Path) -> None:
     # network.actions=12: the policy gives the thesis's 12 values, the servers play them
     # ("thesis12"), PPO improves them and the run is a team that elevens robocup match plays.

@@ -93,7 +93,8 @@ def test_a_damaged_or_foreign_team_folder_is_a_clear_error(
 
 
 def test_the_shipped_teams_are_named_team_specs() -> None:
-    assert shipped_team_names() == SHIPPED
+    # The core's own; a wing adds its teams' folder when imported (robocup: rcss11, rcss-gpu).
+    assert set(SHIPPED) <= set(shipped_team_names())
     for name in SHIPPED:
         assert parse_team_spec(name).shipped == name
         assert (shipped_team_directory(name) / "MODEL_CARD.md").is_file()

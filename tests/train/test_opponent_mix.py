@@ -18,6 +18,7 @@ from elevens.train.learner import make_learner
 from tests.train.test_trainer import tiny_config
 
 
+@pytest.mark.slow
 def test_training_against_naive_beats_naive_more_often(tmp_path: Path) -> None:
     # Every game of every iteration against the naive team (no self-play). The untrained
     # learner gets 0.04 against it over 200 games; 40 iterations (about 20 s) make it 0.195

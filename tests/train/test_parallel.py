@@ -65,6 +65,7 @@ def free_port() -> int:
         return int(probe.getsockname()[1])
 
 
+@pytest.mark.slow
 def test_two_processes_on_loopback_train_one_run(tmp_path: Path) -> None:
     run_dir = tmp_path / "run"
     coordinator = f"127.0.0.1:{free_port()}"

@@ -115,7 +115,7 @@ def test_robocup_train_refuses_a_held_directory_before_building_the_learner(
     try:
         monkeypatch.setattr(learner_module, "make_learner", _refuse)
         with pytest.raises(RunRefusedError, match=rf"\(process {process.pid}\)"):
-            train_robocup(small_config(tmp_path), env_factory=_refuse, print_fn=_refuse)
+            train_robocup(small_config(tmp_path), env_factory=_refuse, progress=False)
     finally:
         process.kill()
         process.wait(WAIT_S)

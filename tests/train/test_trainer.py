@@ -156,6 +156,7 @@ def test_configs_with_the_same_networks_share_their_initialisation() -> None:
     assert leaves_equal(on_a_game, (state.params.policy, state.params.critic))
 
 
+@pytest.mark.slow
 def test_compacted_update_equals_the_dense_update(monkeypatch: pytest.MonkeyPatch) -> None:
     # 4 v 4 is the smallest team that compacts. () is the dense trainer; (1.0,) always takes
     # the compacted branch; (0.05,) never fits and falls back to the dense branch.

@@ -91,8 +91,9 @@ class Randomize:
                 # The goal and the field are checked against each other below, not against
                 # SPEC.md's other one.
                 other = {"goal_width": "field_width", "field_width": "goal_width"}.get(name)
+                values: dict[str, Any] = {name: end, **({other: end} if other else {})}
                 try:
-                    EnvParams(**{name: end, **({other: end} if other else {})})
+                    EnvParams(**values)
                 except ValueError as error:
                     rule = str(error).partition("is invalid: ")[2]
                     raise ValueError(
@@ -159,7 +160,8 @@ def tile_games(settings: EnvParams, num_games: int) -> EnvParams:
 
 def setting_count(params: EnvParams) -> int:
     """The leading ``[G]`` of per-game params (``game_axis`` 0)."""
-    return int(np.shape(params.field_length)[0])
+    shape: tuple[int, ...] = np.shape(params.field_length)
+    return int(shape[0])
 
 
 def game_axis(params: EnvParams) -> int | None:

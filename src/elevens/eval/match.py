@@ -79,7 +79,7 @@ def _play_chunk(
     away: TeamPolicy,
     num_steps: int,
     record: bool,
-    params: EnvParams,
+    params: EnvParams | None,
     home_params: Any,
     away_params: Any,
     games: tuple[jax.Array, jax.Array, EnvParams | None],
@@ -89,8 +89,8 @@ def _play_chunk(
     for ``params``) -> (final scores i32[C, 2] by side, per-step records [C, T, ...] or None).
     Game ``g`` draws everything from its own key."""
     keys, sides, own = games
-    if own is not None:
-        params = own
+    params = own if own is not None else params
+    assert params is not None, "a chunk needs the shared params or its games' own"
     axis = game_axis(params)
     reset_keys, play_keys = jnp.moveaxis(jax.vmap(jax.random.split)(keys), 1, 0)
     states, _ = jax.vmap(env.reset, in_axes=(0, axis))(reset_keys, params)

@@ -66,7 +66,7 @@ def test_a_randomised_run_trains_logs_and_resumes_its_config(tmp_path: Path) -> 
     config = tiny_config(
         tmp_path / "run", **SMALL_FIELD,
         **{"games_per_iteration": 16, "run.iterations": 2, "run.eval_every": 0,
-           "run.eval_games": 4, "opponent.mix": ("self=0.5", "naive=0.5")},
+           "run.eval_teams": (), "opponent.mix": ("self=0.5", "naive=0.5")},
     )
     result = train(config, progress=False)
     assert result.iteration == 2

@@ -103,7 +103,8 @@ class EnvConfig:
     its ball friction, kick impulse, player speed and turn rate, field size, goal width, view
     angle and sight noise from these ranges, fixed for its episode (``elevens.env.randomize``),
     so the policy cannot overfit one set of dynamics. Off (the default): every game is
-    ``env``'s. The simulator's own game only."""
+    ``env``'s. The simulator's own game only; the run's evaluations play ``env``'s game
+    (held-out draws: ``elevens tournament --randomize SEED``)."""
     physics: str = "thesis"
     """The game's bodies and action: "thesis", the simulator's own game (``elevens.env.soccer``,
     the 2-value (move, rot) action). Other names belong to games registered by a package above

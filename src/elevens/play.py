@@ -31,10 +31,12 @@ import numpy as np
 from flax import struct
 
 from elevens.env.params import EnvParams
+from elevens.env.randomize import game_axis
 from elevens.env.soccer import Soccer, applied_actions
 from elevens.env.state import Observation, State, StepInfo
 from elevens.nets.policy import AttentionPolicy
 from elevens.teams.base import TeamPolicy
+from elevens.teams.registry import on_game
 
 Carry = Any
 
@@ -94,6 +96,9 @@ class PolicyActor:
 
     policy: TeamPolicy
     params: Any = None
+    game_params: EnvParams | None = None
+    """Per-game EnvParams (leading ``[G]``) of drawn games: the team then plays each game on
+    that game's field (``teams.registry.on_game``). None: the field it was made for."""
 
     def init_carry(self, num_games: int, players_per_team: int) -> Carry:
         one = self.policy.init_carry(players_per_team)
@@ -108,9 +113,16 @@ class PolicyActor:
             )
         num_games = reset.shape[0]
         keys = key if key.ndim == 1 else jax.random.split(key, num_games)
-        carry, actions = jax.vmap(self.policy.act, in_axes=(None, 0, 0, 0))(
-            self.params, carry, obs, keys
-        )
+        if self.game_params is None:
+            carry, actions = jax.vmap(self.policy.act, in_axes=(None, 0, 0, 0))(
+                self.params, carry, obs, keys
+            )
+            return carry, actions, None
+
+        def act_on(game: EnvParams, memory: Carry, seen: Observation, key: jax.Array) -> Any:
+            return on_game(self.policy, game).act(self.params, memory, seen, key)
+
+        carry, actions = jax.vmap(act_on)(self.game_params, carry, obs, keys)
         return carry, actions, None
 
 
@@ -233,13 +245,17 @@ def unroll(
     step_keys: StepKeys,
     record: Callable[[StepView], Any],
     constrain_games: Callable[[Any], Any] = lambda tree: tree,
+    noisy: bool = False,
 ) -> tuple[UnrollCarry, Any]:
     """Play the G games of ``states`` (leading [G]) for as many steps as ``step_keys`` has.
 
-    ``record`` picks what each step keeps; the scan stacks it with a leading ``[T]``.
-    ``constrain_games`` is applied to the carry after every step (training: games split over
-    devices). Jit this (or call it inside a jit); the actors' policies are static.
-    -> (final carry, stacked records).
+    ``params``: one game for all, or one per game (leading ``[G]`` on every leaf: drawn games,
+    ``elevens.env.randomize``). ``record`` picks what each step keeps; the scan stacks it with
+    a leading ``[T]``. ``constrain_games`` is applied to the carry after every step (training:
+    games split over devices). ``noisy`` (static): the players see with
+    ``params.observation_noise`` (``Soccer.observe_noisy``, keyed by a fold of each game's env
+    key); False observes exactly, at no cost. Jit this (or call it inside a jit); the actors'
+    policies are static. -> (final carry, stacked records).
     """
     n = env.players_per_team
     num_games = home_side.shape[0]
@@ -250,7 +266,9 @@ def unroll(
             away_carry=away.init_carry(num_games, n),
         )
     )
-    step = functools.partial(_step, env, params, home, away, home_side, record, constrain_games)
+    step = functools.partial(
+        _step, env, params, home, away, home_side, record, constrain_games, noisy
+    )
     return jax.lax.scan(step, start, step_keys)
 
 
@@ -262,12 +280,18 @@ def _step(
     home_side: jax.Array,
     record: Callable[[StepView], Any],
     constrain_games: Callable[[Any], Any],
+    noisy: bool,
     carry: UnrollCarry,
     keys: StepKeys,
 ) -> tuple[UnrollCarry, Any]:
     """One step of every game: both teams act on the carried state, the env moves on."""
     n = env.players_per_team
-    obs = jax.vmap(env.observe, in_axes=(0, None))(carry.state, params)  # leading [G, 2, n]
+    axis = game_axis(params)
+    if noisy:
+        sight_keys = jax.vmap(lambda key: jax.random.fold_in(key, 1))(keys.env)
+        obs = jax.vmap(env.observe_noisy, in_axes=(0, axis, 0))(carry.state, params, sight_keys)
+    else:
+        obs = jax.vmap(env.observe, in_axes=(0, axis))(carry.state, params)  # leading [G, 2, n]
     home_obs = pick_side(obs, home_side)  # leading [G, n]
     away_obs = pick_side(obs, 1 - home_side)
     game_reset = carry.state.step == 0  # bool[G]
@@ -278,7 +302,7 @@ def _step(
     away_carry, away_actions, _ = away.act(carry.away_carry, away_obs, player_reset, keys.away)
     actions = place_sides(home_actions, away_actions, home_side).astype(jnp.float32)
     actions = applied_actions(actions)
-    transition = jax.vmap(env.transition, in_axes=(0, 0, 0, None))
+    transition = jax.vmap(env.transition, in_axes=(0, 0, 0, axis))
     state, rewards, done, info = transition(keys.env, carry.state, actions, params)
     view = StepView(
         state=carry.state, home_obs=home_obs, home_side=home_side, reset=game_reset,

@@ -70,6 +70,10 @@ class TournamentArgs:
     goalie: bool = False
     """Teams of the 12-value RoboCup action: each goalie guards its goal and catches as the
     elevens routines play it in rcssserver."""
+    randomize: int | None = None
+    """SEED: play every match on the 20 held-out randomised game settings of SEED (physics and
+    geometry drawn from env.randomize's default ranges on another key than any training draw;
+    game g plays setting g % 20). Default: the one game of --players and --steps."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -223,6 +227,7 @@ def tournament_command(args: TournamentArgs) -> Any:
     ``Tournament``."""
     from rich.console import Console
 
+    from elevens.env.soccer import Soccer
     from elevens.eval.tournament import print_tournament, run_tournament, save_tournament
 
     if not args.teams:
@@ -238,6 +243,11 @@ def tournament_command(args: TournamentArgs) -> Any:
     names = [team.name for team in teams]
     if args.anchor is not None and args.anchor not in names:
         raise ValueError(f"--anchor {args.anchor!r} is not one of the teams: {', '.join(names)}")
+    if args.randomize is not None and type(env) is not Soccer:
+        raise ValueError(
+            f"randomize={args.randomize}: held-out randomised games are the simulator's own "
+            "game; teams of the 12-value RoboCup action play another"
+        )
     began = time.perf_counter()
 
     def on_match(index: int, total: int, home: str, away: str, result: Any) -> None:
@@ -252,7 +262,7 @@ def tournament_command(args: TournamentArgs) -> Any:
     tournament = run_tournament(
         teams, env, params, num_games=args.games, seed=args.seed,
         chunk_size=args.chunk_size, on_match=on_match, anchor=args.anchor,
-        bootstrap_samples=args.bootstrap,
+        bootstrap_samples=args.bootstrap, randomize=args.randomize,
     )
     print_tournament(tournament, console)
     paths = save_tournament(tournament, args.out)

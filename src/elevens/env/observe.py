@@ -82,10 +82,12 @@ def time_left(state: State, params: EnvParams) -> jax.Array:
     return jnp.clip(1.0 - state.step / params.episode_length, 0.0, 1.0)
 
 
-def observe(state: State, params: EnvParams) -> Observation:
+def observe(state: State, params: EnvParams, noise: jax.Array | None = None) -> Observation:
     """Every player's partial egocentric observation, in its team's frame.
 
     state: one game (no batch axis; vmap for batches) -> Observation with leading axes [2, n].
+    noise: f32[2n, 2n + 1, 2] metres added to where each observer (world order) sees each
+    entity (players, then the ball), or None for exact sight (``sight_noise``).
     """
     n = params.players_per_team
     num_players = 2 * n
@@ -107,6 +109,8 @@ def observe(state: State, params: EnvParams) -> Observation:
     c, s = cos_h[:, None], sin_h[:, None]
     dx = entity_positions[None, :, 0] - state.positions[:, 0:1]
     dy = entity_positions[None, :, 1] - state.positions[:, 1:2]
+    if noise is not None:
+        dx, dy = dx + noise[..., 0], dy + noise[..., 1]
     distance = jnp.sqrt(dx * dx + dy * dy)
     safe = distance > 1e-6
     inverse = 1.0 / jnp.where(safe, distance, 1.0)
@@ -163,6 +167,14 @@ def observe(state: State, params: EnvParams) -> Observation:
         entities=entities.reshape(2, n, num_players, -1),
         entity_mask=visible.reshape(2, n, num_players),
     )
+
+
+def sight_noise(key: jax.Array, params: EnvParams) -> jax.Array:
+    """f32[2n, 2n + 1, 2]: each observer's error on where it sees each entity, N(0, std^2)
+    per axis with std ``params.observation_noise`` (metres)."""
+    num_players = params.num_players
+    shape = (num_players, num_players + 1, 2)
+    return params.observation_noise * jax.random.normal(key, shape)
 
 
 def global_state(state: State, params: EnvParams) -> GlobalState:

@@ -123,6 +123,11 @@ class EnvParams:
     # --- view ---
     fov_half_angle: float = math.pi / 2
     """Visible if the direction to an object's centre is within this angle of the heading."""
+    observation_noise: float = 0.0
+    """Std (metres) of the Gaussian error on each axis of where a player sees every other
+    object, drawn afresh each step (domain randomisation; 0: exact sight, SPEC.md's game).
+    Needs a key: the unrolls (training and matches) observe through ``Soccer.observe_noisy``
+    when it is above 0; ``Soccer.observe`` alone sees exactly."""
 
     # --- episodes and spawning ---
     episode_length: int = 400
@@ -180,7 +185,7 @@ class EnvParams:
         non_negative = (
             "leg_reach", "push_impulse", "kick_impulse", "ball_stop_speed", "spawn_noise",
             "heading_noise", "goal_reward", "ball_shaping_weight", "approach_shaping_weight",
-            "possession_shaping_weight",
+            "possession_shaping_weight", "observation_noise",
         )
         unit_interval = ("ball_friction", "wall_restitution", "ball_spawn_fraction")
         values = {name: getattr(self, name) for name in (*positive, *non_negative, *unit_interval)}

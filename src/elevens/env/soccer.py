@@ -184,6 +184,13 @@ class Soccer:
         """Partial egocentric observations, ``[2, n]`` leading axes (see ``observe.observe``)."""
         return observe_lib.observe(state, params)
 
+    def observe_noisy(self, state: State, params: EnvParams, key: jax.Array) -> Observation:
+        """``observe`` with each player seeing the others and the ball off by Gaussian noise of
+        std ``params.observation_noise`` metres per axis (``observe.sight_noise``); key: this
+        step's. With noise 0 it equals ``observe``."""
+        noise = observe_lib.sight_noise(key, params)
+        return observe_lib.observe(state, params, noise)
+
     def global_state(self, state: State, params: EnvParams) -> GlobalState:
         """The critic's full state, leading axis ``[2]`` (each team's own view)."""
         return observe_lib.global_state(state, params)

@@ -20,6 +20,7 @@ import numpy as np
 from flax import struct
 
 from elevens.env.params import EnvParams
+from elevens.env.randomize import game_axis, setting_count
 from elevens.env.soccer import Soccer
 from elevens.play import PolicyActor, StepView, home_sides, per_game_step_keys, unroll
 from elevens.teams.base import TeamPolicy
@@ -78,20 +79,26 @@ def _play_chunk(
     away: TeamPolicy,
     num_steps: int,
     record: bool,
-    params: EnvParams,
+    params: EnvParams | None,
     home_params: Any,
     away_params: Any,
-    games: tuple[jax.Array, jax.Array],
+    games: tuple[jax.Array, jax.Array, EnvParams | None],
+    noisy: bool = False,
 ) -> tuple[jax.Array, MatchRecord | None]:
-    """A chunk of games (keys key[C], home sides i32[C]) -> (final scores i32[C, 2] by side,
-    per-step records [C, T, ...] or None). Game ``g`` draws everything from its own key."""
-    keys, sides = games
+    """A chunk of games (keys key[C], home sides i32[C], the games' own EnvParams [C] or None
+    for ``params``) -> (final scores i32[C, 2] by side, per-step records [C, T, ...] or None).
+    Game ``g`` draws everything from its own key."""
+    keys, sides, own = games
+    params = own if own is not None else params
+    assert params is not None, "a chunk needs the shared params or its games' own"
+    axis = game_axis(params)
     reset_keys, play_keys = jnp.moveaxis(jax.vmap(jax.random.split)(keys), 1, 0)
-    states, _ = jax.vmap(env.reset, in_axes=(0, None))(reset_keys, params)
+    states, _ = jax.vmap(env.reset, in_axes=(0, axis))(reset_keys, params)
+    fields = params if axis is not None else None
     final, history = unroll(
-        env, params, PolicyActor(home, home_params), PolicyActor(away, away_params), states,
-        sides, per_game_step_keys(play_keys, num_steps),
-        _match_record if record else lambda view: None,
+        env, params, PolicyActor(home, home_params, fields), PolicyActor(away, away_params, fields),
+        states, sides, per_game_step_keys(play_keys, num_steps),
+        _match_record if record else lambda view: None, noisy=noisy,
     )
     if history is not None:
         history = jax.tree.map(lambda leaf: jnp.moveaxis(leaf, 0, 1), history)  # [C, T, ...]
@@ -99,7 +106,8 @@ def _play_chunk(
 
 
 @functools.partial(
-    jax.jit, static_argnames=("env", "home", "away", "num_steps", "chunk_size", "record")
+    jax.jit,
+    static_argnames=("env", "home", "away", "num_steps", "chunk_size", "record", "noisy"),
 )
 def _play_games(
     params: EnvParams,
@@ -114,14 +122,20 @@ def _play_games(
     num_steps: int,
     chunk_size: int,
     record: bool,
+    noisy: bool = False,
 ) -> tuple[jax.Array, MatchRecord | None]:
-    """keys key[G'], sides i32[G'] (G' a multiple of chunk_size) -> (scores i32[G', 2], record)."""
+    """keys key[G'], sides i32[G'] (G' a multiple of chunk_size), params one game for all or
+    one per game ([G']) -> (scores i32[G', 2], record)."""
+    per_game = game_axis(params) is not None
+    shared = None if per_game else params
     chunk = functools.partial(
-        _play_chunk, env, home, away, num_steps, record, params, home_params, away_params
+        _play_chunk, env, home, away, num_steps, record, shared, home_params, away_params,
+        noisy=noisy,
     )
     chunks = keys.shape[0] // chunk_size
     by_chunk = lambda leaf: leaf.reshape(chunks, chunk_size, *leaf.shape[1:])  # noqa: E731
-    scores, history = jax.lax.map(chunk, (by_chunk(keys), by_chunk(sides)))
+    own = jax.tree.map(by_chunk, params) if per_game else None
+    scores, history = jax.lax.map(chunk, (by_chunk(keys), by_chunk(sides), own))
     unchunk = lambda leaf: leaf.reshape(chunks * chunk_size, *leaf.shape[2:])  # noqa: E731
     return unchunk(scores), jax.tree.map(unchunk, history)
 
@@ -149,13 +163,26 @@ def play_match(
     the rest; otherwise always side 0. Episodes last ``params.episode_length`` steps (static: a
     new length recompiles). Games run ``chunk_size`` at a time (vmapped) to bound memory.
     Compiles once per (env, policies, G, episode length, record, chunk size).
+    ``params`` is one game for every game, or one per game (every leaf ``[G]``: drawn games,
+    ``elevens.env.randomize.tile_games``), where handcrafted teams play on each game's field.
+    Players see with ``params.observation_noise`` where it is above 0.
     Returns a MatchResult with ``[G]`` fields (``[G, T, ...]`` in ``record`` when record=True).
     """
     if num_games < 1:
         raise ValueError(f"num_games={num_games!r} is invalid: it must be >= 1")
     if chunk_size < 1:
         raise ValueError(f"chunk_size={chunk_size!r} is invalid: it must be >= 1")
-    num_steps = int(params.episode_length)
+    per_game = game_axis(params) is not None
+    if per_game and setting_count(params) != num_games:
+        raise ValueError(
+            f"params hold {setting_count(params)} games and num_games={num_games}: per-game "
+            "params need one entry per game (elevens.env.randomize.tile_games)"
+        )
+    lengths = np.unique(np.asarray(params.episode_length))
+    if lengths.size != 1:
+        raise ValueError(f"episode_length={lengths.tolist()}: a match's games last one length")
+    num_steps = int(lengths[0])
+    noisy = bool(np.any(np.asarray(params.observation_noise) > 0))
     # Equal chunks with the least padding: e.g. 500 games at chunk_size 128 run as 4 x 125.
     num_chunks = math.ceil(num_games / chunk_size)
     chunk = math.ceil(num_games / num_chunks)
@@ -167,6 +194,10 @@ def play_match(
     if padded > num_games:
         game_keys = jnp.concatenate([game_keys, game_keys[: padded - num_games]])
         sides = np.concatenate([sides, sides[: padded - num_games]])
+        if per_game:
+            params = jax.tree.map(
+                lambda leaf: jnp.concatenate([leaf, leaf[: padded - num_games]]), params
+            )
     scores, history = _play_games(
         params,
         home_params,
@@ -179,6 +210,7 @@ def play_match(
         num_steps=num_steps,
         chunk_size=chunk,
         record=record,
+        noisy=noisy,
     )
     scores = scores[:num_games]
     if history is not None:

@@ -30,6 +30,7 @@ import jax
 import numpy as np
 
 from elevens.env.params import EnvParams
+from elevens.env.randomize import held_out_games, setting_rows, tile_games
 from elevens.env.soccer import Soccer
 from elevens.eval.match import DEFAULT_CHUNK_SIZE, MatchResult, play_match
 from elevens.eval.ratings import GameCounts, Ratings, fit_bradley_terry
@@ -81,6 +82,11 @@ class Tournament:
     seed: int
     specs: tuple[str, ...]
     wall_s: float
+    randomize: int | None = None
+    """Seed of the held-out randomised settings the games were played on (None: ``params``'s
+    game, the same for every game)."""
+    settings: tuple[dict[str, Any], ...] = ()
+    """Those settings' drawn constants (game g of every match played setting g % count)."""
 
 
 def table_from_results(
@@ -179,16 +185,27 @@ def run_tournament(
     on_match: ProgressFn | None = None,
     anchor: str | None = None,
     bootstrap_samples: int = 1000,
+    randomize: int | None = None,
 ) -> Tournament:
-    """Play a round robin and fit ratings (see ``play_round_robin`` and ``fit_bradley_terry``)."""
+    """Play a round robin and fit ratings (see ``play_round_robin`` and ``fit_bradley_terry``).
+
+    ``randomize``: a seed; every match then plays its games on the held-out randomised
+    settings of that seed drawn on ``params`` (``elevens.env.randomize.held_out_games``, game
+    ``g`` on setting ``g % 20``), which no training run draws."""
     if len(teams) < 1:
         raise ValueError("a tournament needs at least one team")
     labels = tuple(names) if names is not None else tuple(team.name for team in teams)
     if len(set(labels)) != len(labels):
         raise ValueError(f"team names must be distinct, got {labels}")
+    settings: tuple[dict[str, Any], ...] = ()
+    games_params = params
+    if randomize is not None:
+        held_out = held_out_games(randomize, params)
+        settings = tuple(setting_rows(held_out))
+        games_params = tile_games(held_out, num_games)
     began = time.perf_counter()
     results = play_round_robin(
-        teams, env, params, jax.random.key(seed), num_games, names=labels,
+        teams, env, games_params, jax.random.key(seed), num_games, names=labels,
         chunk_size=chunk_size, on_match=on_match,
     )
     table = table_from_results(labels, results)
@@ -204,6 +221,8 @@ def run_tournament(
         seed=seed,
         specs=tuple(team.spec or team.name for team in teams),
         wall_s=time.perf_counter() - began,
+        randomize=randomize,
+        settings=settings,
     )
 
 
@@ -230,6 +249,10 @@ def print_tournament(tournament: Tournament, console: Any = None) -> None:
         caption=(
             f"{_scenario(tournament)}, {tournament.games_per_pair} games a pair, sides swapped; "
             "win 1, draw 0.5, loss 0"
+            + (
+                f"; on the {len(tournament.settings)} held-out randomised settings of seed "
+                f"{tournament.randomize}" if tournament.randomize is not None else ""
+            )
         ),
         title_justify="left",
         caption_justify="left",
@@ -285,6 +308,8 @@ def tournament_dict(tournament: Tournament) -> dict[str, Any]:
         "episode_length": tournament.episode_length,
         "seed": tournament.seed,
         "wall_s": tournament.wall_s,
+        "randomize": tournament.randomize,
+        "settings": list(tournament.settings),
         "outcome": "row team against column team: win 1, draw 0.5, loss 0",
         "games": matrix(table.games),
         "mean": matrix(table.mean),

@@ -49,11 +49,23 @@ def resolve_team(name: str, params: EnvParams | None = None) -> TeamPolicy:
     if params is None:
         return team
     field = Field.of(params)
+    if getattr(team, "on_field", None) is None and field == Field():
+        return team
+    return fielded(team, field)
+
+
+def on_game(team: TeamPolicy, params: EnvParams) -> TeamPolicy:
+    """``team`` on the field of one drawn game (``elevens.env.randomize``), inside a trace:
+    ``params``' leaves may be tracers, and the team made here is never hashed."""
+    return fielded(team, Field.of(params))
+
+
+def fielded(team: TeamPolicy, field: Field) -> TeamPolicy:
+    """``team`` told ``field``: the scripted teams and those with an ``on_field`` method; any
+    other team (a network, random) is returned as it is."""
     on_field = getattr(team, "on_field", None)
     if on_field is not None:  # a registered team that knows its own default field
         return typing.cast(TeamPolicy, on_field(field))
-    if field == Field():
-        return team
     if isinstance(team, NaiveTeam):
         return dataclasses.replace(team, field=field)
     if isinstance(team, TeamworkTeam):

@@ -75,13 +75,18 @@ class Field:
 
     @classmethod
     def of(cls, params: Any) -> Field:
-        """The geometry of ``params`` (an ``EnvParams``)."""
+        """The geometry of ``params`` (an ``EnvParams``): floats, or the tracers of one drawn
+        game inside a trace (``teams.registry.on_game``)."""
+
+        def number(value: Any) -> Any:
+            return value if isinstance(value, jax.core.Tracer) else float(value)
+
         return cls(
-            half_length=float(params.half_length),
-            half_width=float(params.half_width),
-            goal_half_width=float(params.goal_width) / 2,
-            turn_speed=float(params.turn_speed),
-            ball_friction=float(params.ball_friction),
+            half_length=number(params.half_length),
+            half_width=number(params.half_width),
+            goal_half_width=number(params.goal_width / 2),
+            turn_speed=number(params.turn_speed),
+            ball_friction=number(params.ball_friction),
         )
 
 

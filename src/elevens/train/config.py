@@ -39,6 +39,7 @@ from typing import Annotated, Any, ClassVar
 import tyro
 
 from elevens.env.params import MAX_PLAYERS_PER_TEAM, EnvParams
+from elevens.env.randomize import Randomize
 from elevens.env.soccer import Soccer
 from elevens.train.opponents import (
     LEAGUE_EVERY,
@@ -97,6 +98,13 @@ class EnvConfig:
     mix_shares: tuple[float, ...] = ()
     """The share of the iterations of each game of ``mix``, in its order; the main game has the
     rest. E.g. ``mix=('2v2',), mix_shares=(0.5,)``: every other chunk is 2 v 2."""
+    randomize: Randomize = Randomize()
+    """Domain randomisation (thesis 7.4.5): with ``enabled`` every game of an iteration draws
+    its ball friction, kick impulse, player speed and turn rate, field size, goal width, view
+    angle and sight noise from these ranges, fixed for its episode (``elevens.env.randomize``),
+    so the policy cannot overfit one set of dynamics. Off (the default): every game is
+    ``env``'s. The simulator's own game only; the run's evaluations play ``env``'s game
+    (held-out draws: ``elevens tournament --randomize SEED``)."""
     physics: str = "thesis"
     """The game's bodies and action: "thesis", the simulator's own game (``elevens.env.soccer``,
     the 2-value (move, rot) action). Other names belong to games registered by a package above
@@ -159,6 +167,7 @@ _SILENT_DEFAULTS = (
     "learner.network.actions", "learner.env.physics", "learner.env.see_period",
     "learner.env.stamina", "learner.env.goalie", "learner.env.game.possession_shaping_weight",
     "learner.env.game.possession_radius", "learner.env.game.possession_by",
+    "learner.env.game.observation_noise", "learner.env.randomize",
 )
 
 
@@ -845,6 +854,16 @@ def _validate_env(env: EnvConfig) -> None:
         f"env.physics={env.physics!r} is invalid here: this config's game is "
         f"{type(env).PHYSICS!r}; a game is chosen by its preset (elevens train --help), and the "
         f"games known to this process are {', '.join(sorted(GAMES))}",
+    )
+    _require(
+        isinstance(env.randomize, Randomize),
+        f"env.randomize must be a Randomize, got {type(env.randomize).__name__}",
+    )
+    env.randomize.check("env.randomize")
+    _require(
+        not env.randomize.enabled or env.physics == EnvConfig.PHYSICS,
+        f"env.randomize.enabled=True is invalid with env.physics={env.physics!r}: only the "
+        f"simulator's own game ({EnvConfig.PHYSICS!r}) draws its constants",
     )
     env.check()
 

@@ -4,7 +4,8 @@ One iteration (thesis Algorithm 4) compiles into one program, and this file read
 
 1. **Collect** (``collect``, ``elevens.train.rollout``): G games, one whole episode each, the
    learner against the opponent's current params, with the shaping weights in force put into
-   ``EnvParams`` (leaves: no recompile).
+   ``EnvParams`` (leaves: no recompile); with ``env.randomize`` each game draws its own
+   constants (``elevens.env.randomize``).
 2. **Advantages** (``advantages``): Monte Carlo returns G_t (the thesis' choice; A = G - V is
    recomputed with the current critic inside every minibatch, Algorithm 4 lines 15-17), or GAE
    on the rollout-time values (``ppo.advantage_estimator``). The whistle ends the episode for
@@ -41,6 +42,7 @@ from flax import struct
 from jax.sharding import Mesh
 
 from elevens.env.params import EnvParams
+from elevens.env.randomize import training_games
 from elevens.env.soccer import Soccer
 from elevens.env.state import GlobalState, Observation
 from elevens.nets import capacity
@@ -161,6 +163,10 @@ def collect(setup: Setup, state: TrainState, rollout_key: jax.Array) -> Rollout:
         "possession_shaping_weight": weights.possession,
     }
     params_now = dataclasses.replace(setup.env_params, **shaping)
+    randomize = env_config.randomize
+    if randomize.enabled:
+        # Each game its own constants for the episode, drawn from the rollout key.
+        params_now = training_games(rollout_key, params_now, randomize, setup.games)
     return rollout(
         setup.env,
         setup.policy,
@@ -173,6 +179,7 @@ def collect(setup: Setup, state: TrainState, rollout_key: jax.Array) -> Rollout:
         opponent_per_game=setup.opponent.per_game,
         constrain_games=setup.shard_games,
         fixed_opponents=setup.fixed_opponents,
+        noisy=randomize.noisy(game),
     )
 
 

@@ -25,9 +25,11 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from flax import struct
 
 from elevens.env.params import EnvParams
+from elevens.env.randomize import game_axis, game_slice
 from elevens.env.soccer import Soccer
 from elevens.env.state import GlobalState, Observation
 from elevens.nets.policy import AttentionPolicy, PolicyCarry
@@ -146,13 +148,15 @@ def rollout(
     opponent_per_game: bool = False,
     constrain_games: Callable[[Any], Any] = lambda tree: tree,
     fixed_opponents: tuple[FixedOpponent, ...] = (),
+    noisy: bool = False,
 ) -> Rollout:
     """Play ``num_games`` whole episodes of ``num_steps`` steps, learner against opponent.
 
     Args:
         env, policy: the game and the network both teams run (static).
         params: EnvParams, including the shaping weights in force (pytree leaves: changing them
-            does not recompile).
+            does not recompile); one game for all, or one per game (every leaf ``[G]``: drawn
+            games, ``elevens.env.randomize``), which the fixed teams play on too.
         learner_params: the learner's policy variables ``{"params": ...}``.
         opponent_params: the opponent's policy variables, shared by all games, or with a leading
             ``[G]`` axis on every leaf when ``opponent_per_game`` (one league snapshot per game).
@@ -167,6 +171,7 @@ def rollout(
             ``opponent_params``, in blocks of their ``games`` in this order; the first G_self =
             G - (their games) games are self-play, and ``opponent_params`` (per game: leading
             [G_self]) play those. The learner plays both sides in every block.
+        noisy: the players see with ``params.observation_noise`` (static; ``unroll``).
 
     Both teams sample their actions from their tanh Gaussians. Jit this (or call it inside a jit)
     with ``env``, ``policy``, ``num_games`` and ``opponent_per_game`` static.
@@ -176,14 +181,22 @@ def rollout(
     blocks = (self_games, *(opponent.games for opponent in fixed_opponents))
     side = jnp.asarray(home_sides_in_blocks(blocks))
     reset_key, play_key = jax.random.split(key)
-    states, _ = jax.vmap(env.reset, in_axes=(0, None))(
+    axis = game_axis(params)
+    states, _ = jax.vmap(env.reset, in_axes=(0, axis))(
         constrain_games(jax.random.split(reset_key, num_games)), params
     )
     if opponent_per_game:
         opponent_params = constrain_games(opponent_params)
     opponent: Actor = NetworkActor(policy, opponent_params, per_game=opponent_per_game)
     if fixed_opponents:
-        fixed = tuple(PolicyActor(team.policy, team.params) for team in fixed_opponents)
+        starts = np.cumsum((0, *blocks))
+        fixed = tuple(
+            PolicyActor(
+                team.policy, team.params,
+                None if axis is None else game_slice(params, starts[b + 1], starts[b + 2]),
+            )
+            for b, team in enumerate(fixed_opponents)
+        )
         opponent = BlockActor(actors=(opponent, *fixed), games=blocks)
     # All keys of the episode in one draw (each threefry call is a loop of its own on CPU):
     # per step the learner's, the opponent's, and one per game for the env's respawns.
@@ -192,7 +205,7 @@ def rollout(
     learner = NetworkActor(policy, learner_params)
     final, history = unroll(
         env, params, learner, opponent, states, side, step_keys,
-        functools.partial(_learner_record, env, params), constrain_games,
+        functools.partial(_learner_record, env, params), constrain_games, noisy,
     )
     score = final.state.score  # i32[G, 2] by side
     goals_for = jnp.where(side == 0, score[:, 0], score[:, 1])
@@ -204,7 +217,7 @@ def rollout(
 def _learner_record(env: Soccer, params: EnvParams, view: StepView) -> StepRecord:
     """What a training step keeps: the learner's side of everything."""
     side = view.home_side
-    global_state = jax.vmap(env.global_state, in_axes=(0, None))(view.state, params)
+    global_state = jax.vmap(env.global_state, in_axes=(0, game_axis(params)))(view.state, params)
     return StepRecord(
         obs=view.home_obs,
         global_state=pick_side(global_state, side),

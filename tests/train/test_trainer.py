@@ -543,7 +543,8 @@ def test_train_writes_logs_plot_gif_and_checkpoint(
     )
     result = train(config, progress=False)
     printed = capsys.readouterr().out
-    # The user hears what the silent first minutes are for.
+    # The user hears what the silent first minutes are for, from the first second on.
+    assert printed.startswith(f"starting 1v1 run in {tmp_path}: building the learner\n")
     assert "evaluating the untrained networks against random" in printed
     assert "compiling the 1v1 training chunk (2 iterations)" in printed
     assert "compiled and ran the first 1v1 chunk in" in printed

@@ -161,6 +161,11 @@ def train(
     """
     validate(config)
     started = time.perf_counter()
+    # The first line comes before the learner is built: that takes seconds before any compile.
+    print(
+        f"{'resuming' if resume else 'starting'} {config.learner.env.scenario} run in "
+        f"{config.run.run_dir}: building the learner", flush=True,
+    )
     run = open_run(config, resume, resume_from_last_good, progress, host)
     stop_signals = _StopSignals() if run.processes > 1 else None
     try:

@@ -317,14 +317,16 @@ class DeepBlockTeam(PanelTeam):
     width: float = 15.0
     """Half the width of each line."""
 
-    def plan(self, view: TeamView, obs: Observation, roles: Roles) -> Plan:
+    def lines(self, roles: Roles) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(outlet bool[n], block bool[n], spot f32[n, 2]): who stays up, who holds the lines,
+        and each player's place before it slides with the ball (default-field metres)."""
         n = roles.slot.shape[0]
         outfield = np.flatnonzero(~roles.keeper)
         order = outfield[np.argsort(-roles.slot[outfield, 0], kind="stable")]
         outlet = np.zeros(n, bool)
         outlet[order[: min(self.outlets, max(len(outfield) - 1, 0))]] = True
         block = ~roles.keeper & ~outlet
-        # The block's places: back line first (the deepest slots), spread across the mouth.
+        # The back line takes the deepest slots; each line spreads across the goal mouth.
         members = np.flatnonzero(block)
         members = members[np.lexsort((roles.slot[members, 1], roles.slot[members, 0]))]
         back_count = (len(members) + 1) // 2
@@ -336,6 +338,11 @@ class DeepBlockTeam(PanelTeam):
             y = np.linspace(-self.width, self.width, count)[place] if count > 1 else 0.0
             spot[i] = (self.back_line if line else self.front_line, y)
         spot[outlet] = (-5.0, 0.0)
+        return outlet, block, spot
+
+    def plan(self, view: TeamView, obs: Observation, roles: Roles) -> Plan:
+        n = roles.slot.shape[0]
+        outlet, block, spot = self.lines(roles)
         target = self.at(spot) + jnp.stack(
             [jnp.zeros(n), 0.4 * jnp.where(jnp.asarray(outlet), 1.0, 0.6) * view.ball[:, 1]],
             axis=-1,

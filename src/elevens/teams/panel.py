@@ -254,6 +254,8 @@ class ManMarkingTeam(PanelTeam):
         """i32[n]: the opponent each player marks (the keeper's entry is unused)."""
         n = roles.slot.shape[0]
         theirs = -roles.slot  # the opponents' slots in this team's frame
+        # Both teams use the same formation, so the opponents' keeper has this team's keeper's
+        # index: nobody marks it.
         every = [int(k) for k in np.flatnonzero(~roles.keeper)] or list(range(n))
         free = list(every)
         marks = np.zeros(n, np.int32)

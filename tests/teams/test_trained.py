@@ -133,7 +133,9 @@ def test_play_takes_any_team_writes_a_replay_and_refuses_unknown_names(
     assert exit_info.value.code == 2
     error = capsys.readouterr().err.strip()
     assert error.startswith("elevens play: error: ") and "\n" not in error
-    assert "random, naive, teamwork, rcss_naive, elevens-11v11, elevens-2v2" in error
+    for name in ("random", "naive", "teamwork", "counter", "rcss_naive", "elevens-11v11",
+                 "elevens-2v2"):
+        assert f" {name}," in error or error.endswith(f" {name}")
 
 
 def test_a_damaged_latest_checkpoint_names_the_intact_one(

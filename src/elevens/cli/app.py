@@ -15,6 +15,7 @@ from typing import Annotated
 import tyro
 
 from elevens.cli import eval as eval_commands
+from elevens.cli import exploit as exploit_commands
 from elevens.cli import robocup as robocup_commands
 from elevens.cli import robocup_skills as robocup_skills_commands
 from elevens.cli.bench import TrainBenchArgs, bench_train_command
@@ -156,6 +157,7 @@ COMMANDS: Commands = {
     "train": (TrainArgs, train_command),
     "bench-train": (TrainBenchArgs, bench_train_command),
     **eval_commands.COMMANDS,
+    **exploit_commands.COMMANDS,
     **robocup_commands.COMMANDS,
     **robocup_skills_commands.COMMANDS,
 }

@@ -67,6 +67,8 @@ NUMERIC_RANGES: dict[str, tuple[float, float]] = {
     "view": (0, math.inf),
     "threshold": (0.0, 1.0),
     "minutes": (1e-9, math.inf),
+    "eval_every": (1, math.inf),
+    "eval_games": (1, math.inf),
     "learning_rate": (1e-12, math.inf),
     "follow_ball": (1.0, math.inf),
     "num_processes": (0, math.inf),

@@ -43,6 +43,9 @@ class TournamentArgs:
 
     teams: tyro.conf.Positional[Annotated[tuple[str, ...], tyro.conf.arg(metavar="TEAM...")]]
     """Teams: random, naive, teamwork, or a checkpoint PATH[@ITERATION], as [LABEL=]SPEC."""
+    panel: bool = False
+    """Instead of a round robin, play each team against every team of the opponent panel and
+    report its mean and worst outcome (panel.csv, panel.json; elevens.cli.panel)."""
     games: int = 500
     """Games per pair of teams (sides swapped at half time); every team also plays itself."""
     players: int = 11
@@ -225,6 +228,10 @@ def _teams_and_env(
 def tournament_command(args: TournamentArgs) -> Any:
     """Play the round robin, print the table and ratings, write the files. Returns the
     ``Tournament``."""
+    if args.panel:
+        from elevens.cli.panel import panel_command
+
+        return panel_command(args)
     from rich.console import Console
 
     from elevens.env.soccer import Soccer

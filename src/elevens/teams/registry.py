@@ -7,13 +7,19 @@ import typing
 
 from elevens.env import EnvParams
 from elevens.teams.base import TeamPolicy
+from elevens.teams.panel import PANEL_TEAMS
 from elevens.teams.scripted import Field, NaiveTeam, RandomTeam, TeamworkTeam
 
 HANDCRAFTED: dict[str, TeamPolicy] = {
     "random": RandomTeam(),
     "naive": NaiveTeam(),
     "teamwork": TeamworkTeam(),
+    **{team.name: team for team in PANEL_TEAMS},
 }
+
+PANEL: tuple[str, ...] = tuple(team.name for team in PANEL_TEAMS)
+"""The opponent panel (``elevens.teams.panel``): handcrafted teams of distinct styles that a
+trained team is measured against (``elevens tournament TEAM --panel``)."""
 
 
 def register_team(name: str, team: TeamPolicy) -> None:

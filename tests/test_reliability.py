@@ -325,6 +325,8 @@ BEFORE_THE_WORK = [
     (["curves", "run", "--against", "wizards"], "run run has no metric 'eval/wizards/outcome'"),
     (["curves", "run", "--out", "curves.txt"], "--out 'curves.txt' is invalid"),
     (["curves", "real.npz"], "real.npz is not a metrics.csv (not text)"),
+    (["robocup", "play", "--team0", "wizards", "--rcssserver", "no_such_server"],
+     "wizards does not exist"),
 ]
 
 

@@ -212,8 +212,10 @@ def serve(args: RoboCupServeArgs) -> None:
 
 
 def play(args: RoboCupPlayArgs) -> None:
-    from elevens.robocup.play import play_robocup
+    from elevens.robocup.play import load_robocup_team, play_robocup
 
+    for spec in (args.team0, args.team1):  # an unknown team is named before a missing server
+        load_robocup_team(spec, args.action)
     binary = find_rcssserver(args.rcssserver)
     results = play_robocup(
         args.team0, args.team1, players_per_team=args.players, episodes=args.episodes,

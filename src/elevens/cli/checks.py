@@ -64,6 +64,7 @@ NUMERIC_RANGES: dict[str, tuple[float, float]] = {
     "checkpoint_every": (1, math.inf),
     "port": (0, 65535),
     "seed": (0, 2**31 - 1),
+    "randomize": (0, 2**31 - 1),  # the seed of the held-out randomised games
     "view": (0, math.inf),
     "threshold": (0.0, 1.0),
     "minutes": (1e-9, math.inf),

@@ -327,6 +327,12 @@ BEFORE_THE_WORK = [
     (["curves", "real.npz"], "real.npz is not a metrics.csv (not text)"),
     (["robocup", "play", "--team0", "wizards", "--rcssserver", "no_such_server"],
      "wizards does not exist"),
+    # Sizes whose memory cannot fit (below int32, so only the estimate refuses them).
+    (["play", "--players", "11", "--steps", "2000000000"], "--steps=2000000000 needs about"),
+    (["tournament", "naive", "random", "--players", "11", "--games", "2000000000",
+      "--chunk-size", "2000000000"], "--chunk-size=2000000000 needs about"),
+    (["train", "quickstart", "--games-per-iteration", "20000000"],
+     "games_per_iteration=20000000 needs about"),
 ]
 
 

@@ -24,6 +24,7 @@ import numpy as np
 
 import elevens
 from elevens.env import EnvParams, Soccer, State
+from elevens.runs.memory import available_memory_bytes, gb
 
 
 @dataclass(frozen=True)
@@ -156,21 +157,6 @@ scan's carry in and out) and its observation twice (the step's and its intermedi
 bound on what XLA allocates, so a batch refused would not have run."""
 
 
-def available_memory_bytes() -> int | None:
-    """Memory the benchmark may fill: the accelerator's limit, or the host's MemAvailable
-    (None when neither can be read)."""
-    stats = jax.devices()[0].memory_stats() if jax.default_backend() != "cpu" else None
-    if stats and "bytes_limit" in stats:
-        return int(stats["bytes_limit"]) - int(stats.get("bytes_in_use", 0))
-    try:
-        for line in Path("/proc/meminfo").read_text().splitlines():
-            if line.startswith("MemAvailable:"):
-                return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    return None
-
-
 def check_batches_fit(
     players: Sequence[int], batch: Sequence[int], available: int | None = None
 ) -> None:
@@ -187,8 +173,8 @@ def check_batches_fit(
         for games in batch:
             if games * per_game > available:
                 raise ValueError(
-                    f"--batch {games} needs about {_gb(games * per_game)} for {n}v{n} games "
-                    f"({_gb(per_game)} a game), more than the {_gb(available)} of memory "
+                    f"--batch {games} needs about {gb(games * per_game)} for {n}v{n} games "
+                    f"({gb(per_game)} a game), more than the {gb(available)} of memory "
                     f"available: at most {available // per_game:,} games fit"
                 )
 
@@ -201,8 +187,6 @@ def _bytes(tree: Any) -> int:
     return sum(leaf.size * leaf.dtype.itemsize for leaf in jax.tree.leaves(tree))
 
 
-def _gb(size: float) -> str:
-    return f"{size / 1e9:.3g} GB" if size >= 1e6 else f"{size / 1e3:.3g} kB"
 
 
 def run_env_bench(

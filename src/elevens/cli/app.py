@@ -110,10 +110,13 @@ def _set_host_devices(count: int) -> None:
 
 def play(args: PlayArgs) -> Path | None:
     """Play a game and write it to ``args.out`` (and ``args.replay``)."""
+    from elevens.runs.memory import check_fits, replay_bytes
     from elevens.runs.play import play_and_render
 
     # Before the game: a path that cannot be written is refused now, not after it.
     check_output_file("--out", args.out, VIDEO_SUFFIXES)
+    steps = 400 if args.steps is None else args.steps
+    check_fits("--steps", steps, replay_bytes(args.players, steps), "the recorded game's states")
     if args.replay is not None:
         check_output_file("--replay", args.replay, (".npz",))
     return play_and_render(

@@ -225,9 +225,18 @@ def _teams_and_env(
     return [[fit_to_field(team, params) for team in group] for group in loaded], env, params
 
 
+def _check_chunk_fits(args: Any) -> None:
+    from elevens.runs.memory import batch_bytes, check_fits
+
+    games = min(args.chunk_size, args.games)
+    check_fits("--chunk-size", args.chunk_size, batch_bytes(args.players, games),
+               f"{games} {args.players}v{args.players} games at once")
+
+
 def tournament_command(args: TournamentArgs) -> Any:
     """Play the round robin, print the table and ratings, write the files. Returns the
     ``Tournament``."""
+    _check_chunk_fits(args)
     if args.panel:
         from elevens.cli.panel import panel_command
 
@@ -283,6 +292,7 @@ def tournament_command(args: TournamentArgs) -> Any:
 def analyze_command(args: AnalyzeArgs) -> Any:
     """Play each team against the opponent with records; print and save the metrics, draw the
     heat maps. Returns the list of ``TeamMetrics``."""
+    _check_chunk_fits(args)
     import jax
     from rich.console import Console
 

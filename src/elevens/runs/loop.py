@@ -38,6 +38,7 @@ import numpy as np
 from elevens.env.params import EnvParams
 from elevens.runs.errors import RunRefusedError
 from elevens.runs.layout import RunLayout
+from elevens.runs.memory import check_fits, rollout_bytes
 from elevens.runs.resume import (
     check_resumable,
     last_good_step,
@@ -160,6 +161,7 @@ def train(
         host: play the games on the host instead of in the compiled chunk (``HostGames``).
     """
     validate(config)
+    _check_rollouts_fit(config)
     started = time.perf_counter()
     # The first line comes before the learner is built: that takes seconds before any compile.
     print(
@@ -212,6 +214,15 @@ class Resumed:
     shaping_off_at: int | None = None
     fallback: str = ""
     """Set when a damaged checkpoint was skipped: what happened, for the event log."""
+
+
+def _check_rollouts_fit(config: TrainConfig) -> None:
+    """Each game size's rollout fits in memory (``runs.memory``): before any work."""
+    for learner in game_configs(config.learner).values():
+        n, count = learner.players_per_team, learner.games_per_iteration
+        steps = learner.env.game.episode_length
+        check_fits("games_per_iteration", count, rollout_bytes(n, count, steps),
+                   f"a rollout of {count} {n}v{n} games of {steps} steps")
 
 
 def open_run(

@@ -476,8 +476,8 @@ class _Run:
         elif game not in self.compiled:
             self.bar.note(
                 f"compiling the {game} training chunk ({count} iteration"
-                f"{'s' if count > 1 else ''}): once per run and size, from about 20 s "
-                "for 1 v 1 to one or two minutes for 11 v 11 on a 2-core CPU"
+                f"{'s' if count > 1 else ''}): once per run and size: about 10 s for 1 v 1 "
+                "and 30 s for 11 v 11 on an idle 2-core CPU, more on a busy one"
             )
         began = time.perf_counter()
         if self.collect is None:

@@ -45,7 +45,7 @@ class TournamentArgs:
     """Teams: random, naive, teamwork, or a checkpoint PATH[@ITERATION], as [LABEL=]SPEC."""
     panel: bool = False
     """Instead of a round robin, play each team against every team of the opponent panel and
-    report its mean and worst outcome (panel.csv, panel.json; elevens.cli.panel)."""
+    report its mean and worst outcome (panel.csv, panel.json; ``panel_command``)."""
     games: int = 500
     """Games per pair of teams (sides swapped at half time); every team also plays itself."""
     players: int = 11
@@ -225,6 +225,81 @@ def _teams_and_env(
     return [[fit_to_field(team, params) for team in group] for group in loaded], env, params
 
 
+def panel_command(args: TournamentArgs) -> list[Any]:
+    """``elevens tournament TEAM... --panel``: instead of a round robin, each team plays every
+    team of the opponent panel (``teams.registry.PANEL``); prints each outcome, the mean and the
+    worst, and writes panel.csv and panel.json (``eval.panel``). Checks the flags and loads the
+    teams first (before any game). Returns one ``PanelResult`` per team."""
+    from rich.console import Console
+    from rich.markup import escape
+    from rich.table import Table
+
+    from elevens.eval.panel import play_panel, save_panel
+    from elevens.teams.registry import PANEL
+
+    if not args.teams:
+        raise ValueError(
+            "--panel needs the team(s) to measure: e.g. elevens tournament elevens-11v11 --panel"
+        )
+    ignored = [flag for flag, given in (
+        ("--anchor", args.anchor is not None), ("--stamina", args.stamina),
+        ("--goalie", args.goalie), ("--see-period", args.see_period != 1),
+    ) if given]
+    if ignored:
+        raise ValueError(
+            f"{', '.join(ignored)} cannot be used with --panel: the panel plays the simulator's "
+            "own game and fits no ratings"
+        )
+    (teams, panel), env, params = _teams_and_env(
+        (args.teams, PANEL), args.players, args.steps, args.deterministic
+    )
+    console = Console()
+    began = time.perf_counter()
+
+    def on_match(index: int, total: int, opponent: str, result: Any) -> None:
+        import numpy as np
+
+        console.print(
+            f"  v {opponent}: {float(np.mean(result.outcome)):.3f} "
+            f"({time.perf_counter() - began:.1f} s)", markup=False,
+        )
+
+    results = []
+    for team in teams:
+        console.print(f"{team.name} against the panel ({len(panel)} teams):", markup=False)
+        results.append(play_panel(
+            team, panel, env, params, num_games=args.games, seed=args.seed,
+            chunk_size=args.chunk_size, on_match=on_match,
+        ))
+    # One column per team measured, one row per opponent: narrow enough for a terminal.
+    grid = Table(
+        title="Mean outcome ± std of each team against each panel team",
+        caption=(f"{args.players} v {args.players}, {args.games} games a pair, sides swapped; "
+                 "win 1, draw 0.5, loss 0"),
+        title_justify="left", caption_justify="left",
+    )
+    grid.add_column("opponent", style="bold")
+    for result in results:
+        grid.add_column(escape(result.team), justify="right")
+    for k, name in enumerate(results[0].opponents):
+        grid.add_row(escape(name), *(
+            f"{result.numbers[k]['mean']:.3f}±{result.numbers[k]['std']:.2f}"
+            for result in results
+        ))
+    grid.add_row("mean", *(f"{result.mean:.3f}" for result in results), style="bold")
+    grid.add_row("worst", *(f"{result.worst[1]:.3f}" for result in results), style="bold")
+    console.print(grid)
+    paths = save_panel(results, args.out, args.players, args.games,
+                       int(params.episode_length), args.seed)
+    for result in results:
+        worst_name, worst_value = result.worst
+        console.print(f"{result.team}: mean {result.mean:.3f} over the panel, worst "
+                      f"{worst_value:.3f} against {worst_name}", markup=False)
+    for kind, path in paths.items():
+        console.print(f"  {kind}: {path}", markup=False)
+    return results
+
+
 def _check_chunk_fits(args: Any) -> None:
     from elevens.runs.memory import batch_bytes, check_fits
 
@@ -238,8 +313,6 @@ def tournament_command(args: TournamentArgs) -> Any:
     ``Tournament``."""
     _check_chunk_fits(args)
     if args.panel:
-        from elevens.cli.panel import panel_command
-
         return panel_command(args)
     from rich.console import Console
 

@@ -1,6 +1,6 @@
 """One-process UDP client for rcssserver: 2n players and the offline trainer in synch mode.
 
-Why it is built this way (facts in shared/ROBOCUP_NOTES.md sections 1-3, 9):
+Why it is built this way (rcssserver 19 as measured against the live server):
 
 * **One socket per player**, each with a large receive buffer. After ``(init ...)`` the
   server answers from a per-client port; the socket is ``connect()``-ed to it, so later

@@ -1,14 +1,14 @@
 """Keep rcssserver off the network: run the command that starts it in a private network
 namespace.
 
-rcssserver binds its UDP ports on every interface and has no option to choose the address
-(ROBOCUP_NOTES.md section 1), so a server started on a machine with a network is reachable
-from it. ``elevens robocup play|train|bench`` therefore re-execute themselves, at their start,
-under ``unshare --user --map-root-user --net``: the process (and every server and client it
-starts) then has a network of its own that holds only the loopback interface, which this module
-brings up. No privilege is needed where unprivileged user namespaces are allowed (most Linux
-distributions). Where they are not, or ``unshare`` is missing, the command runs as before with
-a warning: its clients talk over 127.0.0.1 only, but the server's ports are open.
+rcssserver binds its UDP ports on every interface and has no option to choose the address, so a
+server started on a machine with a network is reachable from it. ``elevens robocup
+play|train|bench`` therefore re-execute themselves, at their start, under ``unshare --user
+--map-root-user --net``: the process (and every server and client it starts) then has a network
+of its own that holds only the loopback interface, which this module brings up. No privilege is
+needed where unprivileged user namespaces are allowed (most Linux distributions). Where they
+are not, or ``unshare`` is missing, the command runs as before with a warning: its clients talk
+over 127.0.0.1 only, but the server's ports are open.
 
 ``elevens robocup serve`` is not isolated: its servers are there for other programs to use.
 ``ELEVENS_NETWORK_ISOLATION=0`` turns the isolation off (for example to watch a match with a

@@ -45,7 +45,7 @@ __all__ = ["LANDMARKS", "LINES", "PoseEstimate", "localize", "normalize_angle"]
 def _landmarks() -> dict[str, tuple[float, float]]:
     # Default landmark positions of rcssserver (src/landmarkreader.cpp loadDefaults with
     # PITCH 105 x 68, goal_width 14.02, penalty area 16.5 x 40.32, outer flags 5 m
-    # outside the lines); checked on the live server, shared/ROBOCUP_NOTES.md section 6.
+    # outside the lines); checked on the live server.
     half_l, half_w, goal_half, pen_x, pen_half = 52.5, 34.0, 7.01, 36.0, 20.16
     table = {
         "f c": (0.0, 0.0),

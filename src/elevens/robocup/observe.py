@@ -3,7 +3,7 @@
 Pure conversions, testable on recorded messages without a server. The env (``env.py``) calls
 them once per cycle.
 
-Frames (shared/ROBOCUP_NOTES.md section 6; elevens.env.state):
+Frames (rcssserver's, and the simulator's of elevens.env.state):
 
 * server: x in [-52.5, 52.5] (left goal at -52.5), **y down**, degrees, positive from +x towards
   +y (clockwise on screen); ``see`` directions are relative to the head (we never turn the neck,

@@ -57,7 +57,7 @@ INSTALL_HINT = (
 
 #: Server options for training (rcssserver 19.0.0 names, each checked against the
 #: ``server.conf`` it writes; an unknown name makes the server exit with a usage text).
-#: See shared/ROBOCUP_NOTES.md sections 3-4 for why each is needed.
+#: Why each is needed is said beside it.
 TRAINING_OPTIONS: dict[str, str] = {
     # One simulation step per round of (done)s instead of 100 ms wall-clock cycles.
     "server::synch_mode": "true",

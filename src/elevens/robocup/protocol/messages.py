@@ -164,7 +164,7 @@ class ParamMap(Mapping[str, ParamValue]):
 
 
 # rcssserver 19.0.0 defaults (src/serverparam.cpp; identical to the server_param the
-# server sent in shared/rcss_transcripts/server_param.txt) for the values we use.
+# server sent in tests/data/rcss/server_param.txt) for the values we use.
 _SERVER_DEFAULTS: dict[str, ParamValue] = {
     "min_dash_power": 0,
     "max_dash_power": 100,

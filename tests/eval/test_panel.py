@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 
 import elevens
-from elevens.cli import main
 from elevens.cli.eval import main as eval_main
 from elevens.eval.panel import PanelResult, play_panel
 from elevens.runs.teams import load_team
 from elevens.teams.registry import PANEL
+from tests.refusal import refused
 
 
 def test_mean_and_worst_weigh_every_opponent_the_same() -> None:
@@ -75,10 +75,5 @@ def test_bad_panel_input_is_one_line_and_exit_2(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     monkeypatch.chdir(tmp_path)
-    with pytest.raises(SystemExit) as exit_info:
-        main(argv)
-    assert exit_info.value.code == 2
-    error = capsys.readouterr().err.strip()
-    assert error.startswith("elevens tournament: error: ") and "\n" not in error
-    assert message in error
+    assert message in refused(argv, "tournament", capsys)
     assert list(tmp_path.iterdir()) == []  # no game was played, nothing written

@@ -25,6 +25,7 @@ from elevens.train.config import (
     make_config,
     migrate_v1,
     mix_schedule,
+    opponent_mix,
     scenario_config,
     validate,
 )
@@ -426,6 +427,7 @@ def test_a_mixed_run_shares_its_chunks_between_sizes_by_a_fixed_schedule() -> No
     config = make_config("11v11", **{
         "env.mix": ("2v2", "5v5"), "env.mix_shares": (0.5, 0.25),
         "games_per_iteration": 20, "ppo.minibatch_size": 110,
+        "opponent.mix": ("naive=0.25",),
     })
     learner = config.learner
     schedule = mix_schedule(learner, 400)
@@ -436,6 +438,9 @@ def test_a_mixed_run_shares_its_chunks_between_sizes_by_a_fixed_schedule() -> No
     assert (two.env.scenario, two.games_per_iteration, two.env.mix) == ("2v2", 110, ())
     assert two.batch_size == learner.batch_size == 220
     assert two.ppo == learner.ppo and two.validate() is two
+    # Fixed opponents keep their share at every size.
+    assert opponent_mix(learner) == [("self", 15), ("naive", 5)]
+    assert opponent_mix(two) == [("self", 82), ("naive", 28)]
     # Without a mix, every chunk plays the main game.
     assert set(mix_schedule(make_config("2v2").learner, 5)) == {"2v2"}
 

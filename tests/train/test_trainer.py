@@ -510,14 +510,16 @@ def test_a_mixed_run_trains_one_state_at_two_sizes_and_resumes_bit_for_bit(
     tmp_path: Path,
 ) -> None:
     # 1 v 1 (this file's computation, 64 games) and 2 v 2 (32 games: the same 64 sequences),
-    # every other chunk of K = 2.
-    mixed = {"env.mix": ("2v2",), "env.mix_shares": (0.5,), "run.eval_every": 0}
+    # every other chunk of K = 2; each size plays a quarter of its games against naive.
+    mixed = {"env.mix": ("2v2",), "env.mix_shares": (0.5,), "run.eval_every": 0,
+             "opponent.mix": ("naive=0.25",)}
     straight = train(tiny_config(tmp_path / "a", **mixed, **{"run.iterations": 6}),
                      progress=False)
     assert straight.iteration == 6
     assert straight.env_steps == (2 * 64 + 2 * 32 + 2 * 64) * STEPS
     curves = read_metrics_csv(tmp_path / "a")
     np.testing.assert_array_equal(curves["env/players_per_team"].values, [1, 1, 2, 2, 1, 1])
+    assert len(curves["opponent/naive/outcome"].values) == 6  # both sizes met the fixed team
     np.testing.assert_array_equal(
         np.diff(curves["time/env_steps"].values, prepend=0.0),
         [64 * STEPS] * 2 + [32 * STEPS] * 2 + [64 * STEPS] * 2,

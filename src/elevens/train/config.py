@@ -1095,10 +1095,6 @@ def _validate_opponent_mix(learner: LearnerConfig) -> None:
         "opponent.mix without self-play is invalid with opponent.kind='league': the league "
         "learns from its own games",
     )
-    _require(
-        not learner.env.mix,
-        "opponent.mix is invalid with env.mix: mixed sizes play one opponent per chunk",
-    )
     _check_team_actions("opponent.mix", tuple(specs), learner)
 
 

@@ -174,9 +174,9 @@ def test_the_pointer_attends_over_the_player_slots_in_view() -> None:
     assert out.pointer_logits.shape == (8, n, 3, 2 * n - 1)  # teammates, opponents; no ball
     log_p = jax.nn.log_softmax(out.distribution().pointer_logits, axis=-1)
     p = np.asarray(jnp.exp(log_p))
-    visible = np.asarray(obs.entity_mask[..., : 2 * n - 1])
-    assert np.all(p[..., 0] == 0.0) and np.all(p[~np.broadcast_to(visible[:, :, None], p.shape)] == 0)
-    assert np.ptp(p[visible[:, :, None, :].repeat(3, 2)]) > 0.05  # the slots are told apart
+    visible = np.broadcast_to(np.asarray(obs.entity_mask[:, :, None, : 2 * n - 1]), p.shape)
+    assert np.all(p[..., 0] == 0.0) and np.all(p[~visible] == 0.0)
+    assert np.ptp(p[visible]) > 0.05  # the slots in view are told apart
     # An attention, so permuting the opponents' slots permutes their logits alike.
     perm = np.array([2, 0, 1]) + n - 1
     order = np.concatenate([np.arange(n - 1), perm, [2 * n - 1]])

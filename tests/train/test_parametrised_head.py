@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import warnings
+from pathlib import Path
 from typing import Any, ClassVar
 
 import jax
@@ -14,6 +15,8 @@ import numpy as np
 import pytest
 
 from elevens.play import NetworkActor
+from elevens.runs.teams import load_team
+from elevens.teams.trained import save_networks
 from elevens.train.config import EnvConfig, TrainConfig, make_config
 from elevens.train.learner import make_learner
 from elevens.train.rollout import StepRecord, collected
@@ -84,10 +87,11 @@ def test_a_game_of_another_action_count_is_refused(monkeypatch: pytest.MonkeyPat
         make_learner(gaussian)
 
 
-def test_ppo_updates_the_parametrised_policy_towards_the_rewarded_kind() -> None:
+def test_ppo_updates_the_parametrised_policy_and_its_export_plays(tmp_path: Path) -> None:
     """Rollouts of the policy's own samples, reward 1 at every step where it picked kind 1:
     two learner updates (squashed entropy: its noise has the 4 columns of the raw sample)
-    raise the log-probability of kind 1 and leave everything finite."""
+    raise the probability of kind 1 and leave everything finite. The exported networks load
+    as a team of 4-value actions that plays the mode."""
     config = make_config(
         "quickstart", **HEAD,
         **{"ppo.entropy_estimator": "squashed", "games_per_iteration": 8,
@@ -140,3 +144,12 @@ def test_ppo_updates_the_parametrised_policy_towards_the_rewarded_kind() -> None
         assert all(np.isfinite(np.asarray(value)).all() for value in jax.tree.leaves(metrics))
     after = kind_one(state.params.policy)
     assert after > before + 0.05, (before, after)
+
+    networks = {"policy": state.params.policy, "critic": state.params.critic}
+    save_networks(tmp_path / "team", jax.device_get(networks), config.to_dict())
+    team = load_team(str(tmp_path / "team"), deterministic=True)
+    assert team.actions == 4 and team.policy.policy.kinds == 3  # type: ignore[attr-defined]
+    one = jax.tree.map(lambda x: x[0], obs)
+    _, actions = team.policy.act(team.params, team.policy.init_carry(n), one, jax.random.key(0))
+    _, out = policy.apply(state.params.policy, policy.initial_carry((n,)), one, jnp.zeros(n, bool))
+    np.testing.assert_allclose(actions, out.distribution().mode(), rtol=1e-5, atol=1e-6)

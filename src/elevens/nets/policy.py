@@ -237,7 +237,8 @@ def visible_capacity_index(obs: Observation, capacities: Sequence[Capacity]) -> 
 class AttentionPolicy(nn.Module):
     """The policy of one player; leading axes of the inputs are free (players, games, time).
 
-    ``__call__(carry, obs, reset) -> (carry, PolicyOutput)`` for one step, obs an Observation with
+    ``__call__(carry, obs, reset) -> (carry, PolicyOutput)`` (``ParametrisedOutput`` with
+    ``kinds``) for one step, obs an Observation with
     leading axes ``[...]`` (e.g. ``[n]`` for one team of one game). ``unroll`` does T steps.
     Build the first carry with ``initial_carry(batch_shape)``.
     """

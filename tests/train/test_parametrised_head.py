@@ -16,6 +16,8 @@ import pytest
 
 from elevens.play import NetworkActor
 from elevens.runs.teams import load_team
+from elevens.teams.base import Team
+from elevens.teams.network import NetworkTeam
 from elevens.teams.trained import save_networks
 from elevens.train.config import EnvConfig, TrainConfig, make_config
 from elevens.train.learner import make_learner
@@ -85,6 +87,11 @@ def test_a_game_of_another_action_count_is_refused(monkeypatch: pytest.MonkeyPat
     with pytest.raises(ValueError, match=r"^network.actions=2: the game env.physics='four' "
                        r"takes 4 action values"):
         make_learner(gaussian)
+    # A team of the head, met in the simulator's own game (an evaluation, a fixed opponent).
+    team = Team(name="pointer", policy=NetworkTeam(), spec="runs/p", actions=4)
+    with pytest.raises(ValueError, match=r"^team 'pointer' \(runs/p\) gives 4 action values; "
+                       r"this game takes 2"):
+        team.check_size(2, 2)
 
 
 def test_ppo_updates_the_parametrised_policy_and_its_export_plays(tmp_path: Path) -> None:

@@ -59,7 +59,12 @@ from elevens.nets.attention import (
     fits_capacity,
     visible_compaction,
 )
-from elevens.nets.distributions import ParametrisedDistribution, TanhGaussian, clamp_log_std
+from elevens.nets.distributions import (
+    MASKED_LOGIT,
+    ParametrisedDistribution,
+    TanhGaussian,
+    clamp_log_std,
+)
 
 NUM_ACTIONS = 2
 """(move, rot)."""
@@ -92,7 +97,7 @@ class ParametrisedOutput(NamedTuple):
     """The parametrised head's parameters (see ``ParametrisedDistribution.create``)."""
 
     kind_logits: jax.Array  # f32[..., K]
-    pointer_logits: jax.Array  # f32[..., K, 2n - 1]
+    pointer_logits: jax.Array  # f32[..., K, 2n - 1] MASKED_LOGIT out of view
     pointer_mask: jax.Array  # bool[..., 2n - 1] the player slots in view
     mean: jax.Array  # f32[..., K, 2] pre-tanh mean of each kind's target
     log_std: jax.Array  # f32[..., K, 2]
@@ -309,9 +314,9 @@ class AttentionPolicy(nn.Module):
     def encode(
         self, obs: Observation, visible_fraction: Capacity | None = None
     ) -> tuple[jax.Array, jax.Array | None]:
-        """``embed``'s input for out_r f32[..., d], and (attention only) the per-entity
-        embeddings of the 2n - 1 player slots f32[..., 2n - 1, features] (zeros out of view
-        when compacted), which the parametrised head points with.
+        """``embed``'s input for out_r f32[..., d], and (the parametrised head only) the keys
+        its pointer attends with, ``pointer_key`` of the per-entity embeddings of the 2n - 1
+        player slots, f32[..., 2n - 1, features] (zeros out of view when compacted).
 
         ``visible_fraction`` (attention only): run the per-entity layers (encode_team_ff,
         encode_opp_ff, value_opp_ff's value_ff) on the visible teammates and opponents only, at
@@ -346,7 +351,8 @@ class AttentionPolicy(nn.Module):
             x = jnp.concatenate([own, attended.reshape(*lead, -1)], axis=-1)
             if not self.kinds:
                 return x, None
-            return x, compaction.scatter(embeddings).reshape(*visible.shape, -1)
+            compact_keys = self.pointer_key(embeddings)  # on the rows in view only
+            return x, compaction.scatter(compact_keys).reshape(*visible.shape, -1)
         embeddings = jnp.concatenate(
             [
                 self.encode_team_ff(players[..., : n - 1, :]),
@@ -355,29 +361,31 @@ class AttentionPolicy(nn.Module):
             axis=-2,
         )
         attended = self.value_opp_ff(query, embeddings, visible)
-        return jnp.concatenate([own, attended], axis=-1), embeddings
+        keys = self.pointer_key(embeddings) if self.kinds else None
+        return jnp.concatenate([own, attended], axis=-1), keys
 
     def head(
-        self, y: jax.Array, embeddings: jax.Array | None = None, obs: Observation | None = None
+        self, y: jax.Array, keys: jax.Array | None = None, obs: Observation | None = None
     ) -> AnyPolicyOutput:
         """out_r's output f32[..., lstm_features] -> the action distribution's parameters. The
-        parametrised head also takes ``encode``'s embeddings and the observation (its mask)."""
+        parametrised head also takes ``encode``'s pointer keys and the observation (its mask);
+        slots out of view get ``MASKED_LOGIT``."""
         if not self.kinds:
             out = self.action_head(y)
             return PolicyOutput(
                 mean=out[..., : self.num_actions],
                 log_std=clamp_log_std(out[..., self.num_actions :]),
             )
-        assert embeddings is not None and obs is not None
+        assert keys is not None and obs is not None
         kinds, lead = self.kinds, y.shape[:-1]
         query = self.pointer_query(y).reshape(*lead, kinds, self.features)
-        keys = self.pointer_key(embeddings)  # f32[..., 2n - 1, features]
         pointer_logits = jnp.einsum("...kf,...pf->...kp", query, keys) / math.sqrt(self.features)
+        in_view = obs.entity_mask[..., : obs.entity_mask.shape[-1] - 1]
         target = self.target_head(y).reshape(*lead, kinds, 4)
         return ParametrisedOutput(
             kind_logits=self.kind_head(y),
-            pointer_logits=pointer_logits,
-            pointer_mask=obs.entity_mask[..., : obs.entity_mask.shape[-1] - 1],
+            pointer_logits=jnp.where(in_view[..., None, :], pointer_logits, MASKED_LOGIT),
+            pointer_mask=in_view,
             mean=target[..., :2],
             log_std=clamp_log_std(target[..., 2:]),
         )
@@ -387,9 +395,9 @@ class AttentionPolicy(nn.Module):
     ) -> tuple[PolicyCarry, AnyPolicyOutput]:
         """One step. obs: leading axes [...]; reset bool[...] zeroes the carry of those rows
         first (set it on the first step of an episode)."""
-        x, embeddings = self.encode(obs)
+        x, keys = self.encode(obs)
         carry, y = self.out_r(carry, x, reset)
-        return carry, self.head(y, embeddings, obs)
+        return carry, self.head(y, keys, obs)
 
     def unroll(
         self,
@@ -409,10 +417,10 @@ class AttentionPolicy(nn.Module):
         """
         if time_axis not in (0, 1):
             raise ValueError(f"time_axis={time_axis!r} is invalid: it must be 0 or 1")
-        x, embeddings = self.encode(obs_seq, visible_fraction)
+        x, keys = self.encode(obs_seq, visible_fraction)
         if time_axis == 1:
             x, reset_seq = jnp.swapaxes(x, 0, 1), jnp.swapaxes(reset_seq, 0, 1)
         carry, y = self.out_r.sequence(carry, x, reset_seq)
         if time_axis == 1:
             y = jnp.swapaxes(y, 0, 1)
-        return carry, self.head(y, embeddings, obs_seq)
+        return carry, self.head(y, keys, obs_seq)

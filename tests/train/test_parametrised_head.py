@@ -40,8 +40,8 @@ HEAD = {"network.head": "parametrised", "network.kinds": 3, "network.actions": 4
         ({**HEAD, "network.use_attention": False},
          r"^network.use_attention=False is invalid with network.head='parametrised'"),
         ({"network.kinds": 4}, r"^network.kinds=4 is invalid with network.head='gaussian'"),
-        ({"network.actions": 4}, r"^network.actions=4 is invalid: it must be 2 .* or 12 .*, "
-         r"or 4 with network.head='parametrised'$"),
+        ({"network.actions": 5}, r"^network.actions=5 is invalid: it must be 2 \(move, rot\), 4 "
+         r"\(a parametrised action: kind, pointer, x, y\) or 12 "),
     ],
 )
 def test_bad_head_flags_get_one_line(overrides: dict[str, Any], message: str) -> None:

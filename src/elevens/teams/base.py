@@ -60,7 +60,7 @@ class Team:
 
     actions: int = 2
     """Action values its policy gives: 2, the simulator's (move, rot); 12, the thesis's
-    12-value action (a game above the core that takes it); 4, the parametrised head's
+    12-value action (a game above the core that takes it); 4, a parametrised action
     (kind, pointer, x, y)."""
 
     def check_size(self, players_per_team: int, actions: int = 2) -> None:

@@ -160,7 +160,7 @@ def register_game(env_config: type[EnvConfig]) -> None:
 # own game they held their defaults (any other value was refused) and are dropped on reading.
 _OTHER_GAMES_FIELDS = {"stamina": False, "goalie": False, "see_period": 1}
 
-NETWORK_ACTIONS = (2, 12)
+NETWORK_ACTIONS = (2, 4, 12)
 NETWORK_HEADS = ("gaussian", "parametrised")
 PARAMETRISED_ACTIONS = 4
 # Fields added after config version 2 whose default is all that older versions knew: filled
@@ -193,7 +193,8 @@ class NetworkConfig:
     actions: int = 2
     """Policy outputs: 2, the simulator's (move, rot); 12, the thesis's 12-value action (table
     4.1), for a game that takes it (``EnvConfig.actions``) or one played outside the
-    simulator; 4 with the parametrised head."""
+    simulator; 4, a parametrised action (kind, pointer, x, y), which ``head`` 'parametrised'
+    gives as such (the Gaussian head gives 4 continuous values)."""
     head: str = "gaussian"
     """The action head. 'gaussian': a tanh-squashed Gaussian over ``actions`` values.
     'parametrised': a discrete kind, a pointer at a teammate or opponent slot (by attention over
@@ -993,6 +994,23 @@ def _validate_network(network: NetworkConfig) -> None:
     for name in ("features", "num_heads", "lstm_features", "lstm_layers"):
         _int_at_least(f"network.{name}", getattr(network, name), 1)
     _require(
+        network.actions in NETWORK_ACTIONS,
+        f"network.actions={network.actions!r} is invalid: it must be 2 (move, rot), 4 (a "
+        "parametrised action: kind, pointer, x, y) or 12 (the thesis's 12-value action of table "
+        "4.1)",
+    )
+    _require(
+        network.features % network.num_heads == 0,
+        f"network.num_heads={network.num_heads} is invalid: it must divide "
+        f"network.features={network.features}",
+    )
+    for name in ("use_attention", "use_lstm"):
+        value = getattr(network, name)
+        _require(
+            isinstance(value, bool),
+            f"network.{name}={value!r} is invalid: it must be True or False",
+        )
+    _require(
         network.head in NETWORK_HEADS,
         f"network.head={network.head!r} is invalid: allowed values are {NETWORK_HEADS}",
     )
@@ -1019,22 +1037,6 @@ def _validate_network(network: NetworkConfig) -> None:
             network.kinds == 0,
             f"network.kinds={network.kinds!r} is invalid with network.head='gaussian': kinds "
             "belong to network.head='parametrised' (leave it 0)",
-        )
-        _require(
-            network.actions in NETWORK_ACTIONS,
-            f"network.actions={network.actions!r} is invalid: it must be 2 (move, rot) or 12 "
-            "(the thesis's 12-value action of table 4.1), or 4 with network.head='parametrised'",
-        )
-    _require(
-        network.features % network.num_heads == 0,
-        f"network.num_heads={network.num_heads} is invalid: it must divide "
-        f"network.features={network.features}",
-    )
-    for name in ("use_attention", "use_lstm"):
-        value = getattr(network, name)
-        _require(
-            isinstance(value, bool),
-            f"network.{name}={value!r} is invalid: it must be True or False",
         )
 
 

@@ -59,8 +59,9 @@ class Actor(Protocol):
 class NetworkSample(struct.PyTreeNode):
     """The extras of a ``NetworkActor``: what PPO needs of each action."""
 
-    pre_tanh: jax.Array  # f32[G, n, 2] the Gaussian samples u; the actions are tanh(u)
-    log_prob: jax.Array  # f32[G, n] log pi(tanh(u)) under the acting params (exact, from u)
+    pre_tanh: jax.Array  # f32[G, n, A] the raw samples: the Gaussian's u, the actions tanh(u)
+    #                      (the parametrised head: (kind, pointer, u_x, u_y))
+    log_prob: jax.Array  # f32[G, n] log pi(action) under the acting params (exact, from u)
 
 
 @dataclasses.dataclass(frozen=True)

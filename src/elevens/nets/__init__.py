@@ -1,12 +1,14 @@
-"""Flax networks of the learner: the attention + LSTM policy with a tanh-squashed Gaussian, the
-attention critic and their feedforward ablations (config switches). ``elevens.teams.network``
-plays a policy through the TeamPolicy interface."""
+"""Flax networks of the learner: the attention + LSTM policy with a tanh-squashed Gaussian (or
+the parametrised head: a kind, a pointer at a player slot, a target), the attention critic and
+their feedforward ablations (config switches). ``elevens.teams.network`` plays a policy through
+the TeamPolicy interface."""
 
 from elevens.nets.attention import FF2, AttentionPool, MaskedMultiHeadAttention, masked_softmax
 from elevens.nets.critic import AttentionCritic
 from elevens.nets.distributions import (
     LOG_STD_MAX,
     LOG_STD_MIN,
+    ParametrisedDistribution,
     TanhGaussian,
     TanhSample,
     clamp_log_std,
@@ -14,6 +16,7 @@ from elevens.nets.distributions import (
 from elevens.nets.policy import (
     AttentionPolicy,
     LSTMState,
+    ParametrisedOutput,
     PolicyCarry,
     PolicyOutput,
     RecurrentCore,
@@ -29,6 +32,8 @@ __all__ = [
     "AttentionPool",
     "LSTMState",
     "MaskedMultiHeadAttention",
+    "ParametrisedDistribution",
+    "ParametrisedOutput",
     "PolicyCarry",
     "PolicyOutput",
     "RecurrentCore",

@@ -129,3 +129,158 @@ class TanhGaussian:
         """f32[..., d]: ``tanh(mean)``, the deterministic action (the median of each component;
         the true mode of a squashed Gaussian can sit elsewhere, but this is the usual choice)."""
         return jnp.tanh(self.mean)
+
+
+MASKED_LOGIT = -1e9
+"""The logit of a pointer slot out of view: exp(-1e9 - max) is exactly 0 in float32, and unlike
+-inf it keeps ``p * log p`` and every gradient finite."""
+
+
+def _take(x: jax.Array, index: jax.Array) -> jax.Array:
+    """x f32[..., m, *rest] at index i32[...] along the axis after the batch axes. A one-hot
+    sum, not a gather: its gradient is then no scatter (serial on XLA's CPU backend)."""
+    lead = index.ndim
+    size = x.shape[lead]
+    one_hot = jax.nn.one_hot(index, size, dtype=x.dtype)
+    return jnp.sum(x * one_hot.reshape(*one_hot.shape, *([1] * (x.ndim - lead - 1))), axis=lead)
+
+
+def _categorical_entropy(log_p: jax.Array, mask: jax.Array | None = None) -> jax.Array:
+    """f32[...]: the entropy of a categorical from its log-probabilities f32[..., m]; masked
+    entries (probability 0) contribute 0."""
+    terms = jnp.exp(log_p) * log_p
+    if mask is not None:
+        terms = jnp.where(mask, terms, 0.0)
+    return -jnp.sum(terms, axis=-1)
+
+
+@struct.dataclass
+class ParametrisedDistribution:
+    """A parametrised action: a discrete kind, then, given the kind, a pointer at one entity
+    slot and a continuous target in [-1, 1]^2. Build it with ``ParametrisedDistribution.create``.
+
+    The action is f32[..., 4] = (kind, pointer, x, y): kind in ``0..K-1``, pointer in
+    ``0..P-1`` (integers stored as floats, exact below 2^24) and ``(x, y) = tanh(u)``. The raw
+    sample (``TanhSample.pre_tanh``) is (kind, pointer, u_x, u_y), from which ``log_prob`` is
+    exact, as for ``TanhGaussian``. The pointer and the target are conditioned on the kind: the
+    network gives their parameters for every kind (``[..., K, ...]``) and the sampled kind picks
+    its row, so
+
+        log pi(a) = log pi(kind) + log pi(pointer | kind) + log pi(tanh(u) | kind).
+
+    The pointer's slots out of view have probability 0. Where no slot is in view the pointer
+    carries no information: its log-probability and entropy are 0 (any pointer value).
+    """
+
+    kind_logits: jax.Array  # f32[..., K]
+    pointer_logits: jax.Array  # f32[..., K, P] MASKED_LOGIT where pointer_mask is False
+    pointer_mask: jax.Array  # bool[..., P] the slots the pointer may name
+    target: TanhGaussian  # mean, log_std f32[..., K, 2]: the target of each kind
+
+    @classmethod
+    def create(
+        cls,
+        kind_logits: jax.Array,
+        pointer_logits: jax.Array,
+        pointer_mask: jax.Array,
+        target_mean: jax.Array,
+        target_log_std: jax.Array,
+    ) -> ParametrisedDistribution:
+        """kind_logits f32[..., K], pointer_logits f32[..., K, P], pointer_mask bool[..., P],
+        target_mean and target_log_std f32[..., K, 2]; masked pointer logits are replaced."""
+        masked = jnp.where(pointer_mask[..., None, :], pointer_logits, MASKED_LOGIT)
+        return cls(
+            kind_logits=kind_logits,
+            pointer_logits=masked,
+            pointer_mask=pointer_mask,
+            target=TanhGaussian.create(target_mean, target_log_std),
+        )
+
+    def _kind_log_p(self) -> jax.Array:
+        return jax.nn.log_softmax(self.kind_logits, axis=-1)
+
+    def _pointer_log_p(self) -> jax.Array:
+        return jax.nn.log_softmax(self.pointer_logits, axis=-1)
+
+    def _any_in_view(self) -> jax.Array:
+        return jnp.any(self.pointer_mask, axis=-1)
+
+    def _given(self, kind: jax.Array) -> tuple[jax.Array, TanhGaussian]:
+        """The pointer's log-probabilities f32[..., P] and the target of ``kind`` i32[...]."""
+        target = TanhGaussian(
+            mean=_take(self.target.mean, kind), log_std=_take(self.target.log_std, kind)
+        )
+        return _take(self._pointer_log_p(), kind), target
+
+    def sample(self, key: jax.Array) -> TanhSample:
+        """The kind, then its pointer and its target (one reparameterised Gaussian sample)."""
+        kind_key, pointer_key, target_key = jax.random.split(key, 3)
+        kind = jax.random.categorical(kind_key, self.kind_logits, axis=-1)
+        pointer_log_p, target = self._given(kind)
+        pointer = jax.random.categorical(pointer_key, pointer_log_p, axis=-1)
+        u = target.sample(target_key).pre_tanh
+        discrete = jnp.stack([kind, pointer], axis=-1).astype(u.dtype)
+        return TanhSample(
+            action=jnp.concatenate([discrete, jnp.tanh(u)], axis=-1),
+            pre_tanh=jnp.concatenate([discrete, u], axis=-1),
+        )
+
+    def _split(self, values: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
+        kind = jnp.clip(values[..., 0].astype(jnp.int32), 0, self.kind_logits.shape[-1] - 1)
+        pointer = jnp.clip(values[..., 1].astype(jnp.int32), 0, self.pointer_mask.shape[-1] - 1)
+        return kind, pointer, values[..., 2:]
+
+    def _discrete_log_prob(
+        self, kind: jax.Array, pointer: jax.Array
+    ) -> tuple[jax.Array, TanhGaussian]:
+        pointer_log_p, target = self._given(kind)
+        pointer_term = jnp.where(self._any_in_view(), _take(pointer_log_p, pointer), 0.0)
+        return _take(self._kind_log_p(), kind) + pointer_term, target
+
+    def log_prob(self, pre_tanh: jax.Array) -> jax.Array:
+        """f32[...]: log-probability of the action, given the raw sample f32[..., 4]
+        (kind, pointer, u_x, u_y)."""
+        kind, pointer, u = self._split(pre_tanh)
+        discrete, target = self._discrete_log_prob(kind, pointer)
+        return discrete + target.log_prob(u)
+
+    def log_prob_of_action(self, action: jax.Array) -> jax.Array:
+        """f32[...]: log-probability of an action f32[..., 4] (kind, pointer, x, y), x and y in
+        [-1, 1] (see ``TanhGaussian.log_prob_of_action``)."""
+        kind, pointer, xy = self._split(action)
+        discrete, target = self._discrete_log_prob(kind, pointer)
+        return discrete + target.log_prob_of_action(xy)
+
+    def _expected_over_kinds(self, per_kind: jax.Array) -> jax.Array:
+        """H[kind] + E_kind[per_kind]: per_kind f32[..., K] holds each kind's pointer and
+        target entropies."""
+        log_p = self._kind_log_p()
+        return _categorical_entropy(log_p) + jnp.sum(jnp.exp(log_p) * per_kind, axis=-1)
+
+    def _pointer_entropy(self) -> jax.Array:
+        """f32[..., K]: each kind's pointer entropy (0 where no slot is in view)."""
+        mask = self.pointer_mask[..., None, :]
+        return _categorical_entropy(self._pointer_log_p(), mask)
+
+    def gaussian_entropy(self) -> jax.Array:
+        """f32[...]: the entropy of (kind, pointer, u), in closed form: the kind's, plus the
+        expectation over kinds of the pointer's and the pre-tanh Gaussian's (as
+        ``TanhGaussian.gaussian_entropy``, an upper bound of the target's own)."""
+        return self._expected_over_kinds(self._pointer_entropy() + self.target.gaussian_entropy())
+
+    def entropy_at(self, noise: jax.Array) -> jax.Array:
+        """f32[...]: the entropy with the target's one-sample estimate at standard normal
+        ``noise`` f32[..., 4] (its last two columns are used; the discrete parts are exact):
+        see ``TanhGaussian.entropy_at``."""
+        target = self.target.entropy_at(noise[..., None, 2:])
+        return self._expected_over_kinds(self._pointer_entropy() + target)
+
+    def mode(self) -> jax.Array:
+        """f32[..., 4]: the likeliest kind, its likeliest slot in view (slot 0 where none is)
+        and ``tanh(mean)`` of its target."""
+        kind = jnp.argmax(self.kind_logits, axis=-1)
+        pointer_log_p, target = self._given(kind)
+        pointer = jnp.argmax(pointer_log_p, axis=-1)
+        xy = target.mode()
+        discrete = jnp.stack([kind, pointer], axis=-1).astype(xy.dtype)
+        return jnp.concatenate([discrete, xy], axis=-1)

@@ -1,5 +1,6 @@
 """The policy network (thesis figure 5.2, table 6.2): attention over the entities a player sees,
-a 2-layer LSTM for memory, and a tanh-squashed Gaussian over the two actions.
+a 2-layer LSTM for memory, and a tanh-squashed Gaussian over the two actions (or the
+parametrised head below).
 
 One player's forward pass, for a team of ``n`` (any ``n``: no parameter depends on it)::
 
@@ -9,6 +10,18 @@ One player's forward pass, for a team of ``n`` (any ``n``: no parameter depends 
     a = attention(q, value_opp_ff([e, q]), visible)     # 4 heads of 16, f32[64]
     y = out_r([h, a])                                   # 2 LSTM layers of 32 units
     mean, log_std = Dense(4)(y)                         # 2 actions (move, rot)
+
+The parametrised head (``kinds`` K > 0) gives instead a discrete kind, a pointer at one of the
+2n - 1 player slots and a continuous target (x, y), the action f32[4] = (kind, pointer, x, y) of
+``ParametrisedDistribution``; the pointer and the target are given for every kind::
+
+    kind_logits = Dense(K)(y)                                                   # f32[K]
+    pointer_logits = Dense(K * 64)(y) . Dense(64)(e)^T / sqrt(64)              # f32[K, 2n - 1]
+    mean, log_std = Dense(4K)(y)                                                # f32[K, 2]
+
+so the pointer is an attention of the player's memory over the per-entity embeddings ``e`` that
+the encoder computed, masked like it to the slots in view. A pointer value is a slot of
+``elevens.env.observe.entity_layout`` (teammates, then opponents; the observer is in no slot).
 
 The ball slot (the last entity slot) is left out of the attention: the ball is already in the
 self features (``ball_visible``, distance, bearing and velocity), which the thesis feeds to
@@ -46,10 +59,17 @@ from elevens.nets.attention import (
     fits_capacity,
     visible_compaction,
 )
-from elevens.nets.distributions import TanhGaussian, clamp_log_std
+from elevens.nets.distributions import (
+    MASKED_LOGIT,
+    ParametrisedDistribution,
+    TanhGaussian,
+    clamp_log_std,
+)
 
 NUM_ACTIONS = 2
 """(move, rot)."""
+PARAMETRISED_ACTIONS = 4
+"""(kind, pointer, x, y): the action of the parametrised head."""
 
 
 class LSTMState(NamedTuple):
@@ -71,6 +91,25 @@ class PolicyOutput(NamedTuple):
 
     def distribution(self) -> TanhGaussian:
         return TanhGaussian(mean=self.mean, log_std=self.log_std)
+
+
+class ParametrisedOutput(NamedTuple):
+    """The parametrised head's parameters (see ``ParametrisedDistribution.create``)."""
+
+    kind_logits: jax.Array  # f32[..., K]
+    pointer_logits: jax.Array  # f32[..., K, 2n - 1] MASKED_LOGIT out of view
+    pointer_mask: jax.Array  # bool[..., 2n - 1] the player slots in view
+    mean: jax.Array  # f32[..., K, 2] pre-tanh mean of each kind's target
+    log_std: jax.Array  # f32[..., K, 2]
+
+    def distribution(self) -> ParametrisedDistribution:
+        return ParametrisedDistribution.create(
+            self.kind_logits, self.pointer_logits, self.pointer_mask, self.mean, self.log_std
+        )
+
+
+AnyPolicyOutput = PolicyOutput | ParametrisedOutput
+"""What a policy step gives; ``.distribution()`` has sample, log_prob, mode and the entropies."""
 
 
 def reset_carry(carry: PolicyCarry, reset: jax.Array) -> PolicyCarry:
@@ -203,7 +242,8 @@ def visible_capacity_index(obs: Observation, capacities: Sequence[Capacity]) -> 
 class AttentionPolicy(nn.Module):
     """The policy of one player; leading axes of the inputs are free (players, games, time).
 
-    ``__call__(carry, obs, reset) -> (carry, PolicyOutput)`` for one step, obs an Observation with
+    ``__call__(carry, obs, reset) -> (carry, PolicyOutput)`` (``ParametrisedOutput`` with
+    ``kinds``) for one step, obs an Observation with
     leading axes ``[...]`` (e.g. ``[n]`` for one team of one game). ``unroll`` does T steps.
     Build the first carry with ``initial_carry(batch_shape)``.
     """
@@ -224,9 +264,18 @@ class AttentionPolicy(nn.Module):
     """Non-linearity of the feedforward blocks."""
     num_actions: int = NUM_ACTIONS
     """Action values: 2, the simulator's (move, rot); 12, the thesis's 12-value action of
-    table 4.1 (for games above the core that take it)."""
+    table 4.1 (for games above the core that take it); 4 with the parametrised head."""
+    kinds: int = 0
+    """0: the tanh-Gaussian head over ``num_actions`` values. K >= 1: the parametrised head
+    with K kinds (needs attention, and ``num_actions`` 4)."""
 
     def setup(self) -> None:
+        if self.kinds and (not self.use_attention or self.num_actions != PARAMETRISED_ACTIONS):
+            raise ValueError(
+                f"kinds={self.kinds} (the parametrised head) needs use_attention=True and "
+                f"num_actions={PARAMETRISED_ACTIONS}, got use_attention={self.use_attention}, "
+                f"num_actions={self.num_actions}"
+            )
         self.encode_ff = FF2(self.features, activation=self.activation)
         if self.use_attention:
             self.query_ff = FF2(self.features, activation=self.activation)
@@ -236,10 +285,16 @@ class AttentionPolicy(nn.Module):
         self.out_r = RecurrentCore(
             self.lstm_features, self.lstm_layers, self.use_lstm, self.activation
         )
-        # Small initial outputs: the first policy is near mean 0, std 1 for every observation.
-        self.action_head = nn.Dense(
-            2 * self.num_actions, kernel_init=nn.initializers.orthogonal(0.01)
-        )
+        # Small initial outputs: the first policy is near mean 0, std 1 for every observation
+        # (and, with kinds, near uniform over the kinds and the slots in view).
+        small = nn.initializers.orthogonal(0.01)
+        if not self.kinds:
+            self.action_head = nn.Dense(2 * self.num_actions, kernel_init=small)
+            return
+        self.kind_head = nn.Dense(self.kinds, kernel_init=small)
+        self.pointer_query = nn.Dense(self.kinds * self.features, kernel_init=small)
+        self.pointer_key = nn.Dense(self.features)
+        self.target_head = nn.Dense(4 * self.kinds, kernel_init=small)
 
     @nn.nowrap
     def initial_carry(self, batch_shape: Sequence[int]) -> PolicyCarry:
@@ -253,6 +308,15 @@ class AttentionPolicy(nn.Module):
         self, obs: Observation, visible_fraction: Capacity | None = None
     ) -> jax.Array:
         """The memoryless part: Observation with leading axes [...] -> f32[..., d] for out_r.
+        See ``encode``."""
+        return self.encode(obs, visible_fraction)[0]
+
+    def encode(
+        self, obs: Observation, visible_fraction: Capacity | None = None
+    ) -> tuple[jax.Array, jax.Array | None]:
+        """``embed``'s input for out_r f32[..., d], and (the parametrised head only) the keys
+        its pointer attends with, ``pointer_key`` of the per-entity embeddings of the 2n - 1
+        player slots, f32[..., 2n - 1, features] (zeros out of view when compacted).
 
         ``visible_fraction`` (attention only): run the per-entity layers (encode_team_ff,
         encode_opp_ff, value_opp_ff's value_ff) on the visible teammates and opponents only, at
@@ -267,7 +331,7 @@ class AttentionPolicy(nn.Module):
         if not self.use_attention:
             flat = jnp.where(visible[..., None], players, 0.0)
             flat = flat.reshape(*flat.shape[:-2], -1)
-            return self.encode_ff(jnp.concatenate([obs.self_features, flat], axis=-1))
+            return self.encode_ff(jnp.concatenate([obs.self_features, flat], axis=-1)), None
         own = self.encode_ff(obs.self_features)
         query = self.query_ff(own)
         if visible_fraction is not None:
@@ -284,7 +348,11 @@ class AttentionPolicy(nn.Module):
                 ]
             )
             attended = self.value_opp_ff(query.reshape(rows, -1), embeddings, mask, compaction)
-            return jnp.concatenate([own, attended.reshape(*lead, -1)], axis=-1)
+            x = jnp.concatenate([own, attended.reshape(*lead, -1)], axis=-1)
+            if not self.kinds:
+                return x, None
+            compact_keys = self.pointer_key(embeddings)  # on the rows in view only
+            return x, compaction.scatter(compact_keys).reshape(*visible.shape, -1)
         embeddings = jnp.concatenate(
             [
                 self.encode_team_ff(players[..., : n - 1, :]),
@@ -293,23 +361,43 @@ class AttentionPolicy(nn.Module):
             axis=-2,
         )
         attended = self.value_opp_ff(query, embeddings, visible)
-        return jnp.concatenate([own, attended], axis=-1)
+        keys = self.pointer_key(embeddings) if self.kinds else None
+        return jnp.concatenate([own, attended], axis=-1), keys
 
-    def head(self, y: jax.Array) -> PolicyOutput:
-        """out_r's output f32[..., lstm_features] -> the action distribution's parameters."""
-        out = self.action_head(y)
-        return PolicyOutput(
-            mean=out[..., : self.num_actions],
-            log_std=clamp_log_std(out[..., self.num_actions :]),
+    def head(
+        self, y: jax.Array, keys: jax.Array | None = None, obs: Observation | None = None
+    ) -> AnyPolicyOutput:
+        """out_r's output f32[..., lstm_features] -> the action distribution's parameters. The
+        parametrised head also takes ``encode``'s pointer keys and the observation (its mask);
+        slots out of view get ``MASKED_LOGIT``."""
+        if not self.kinds:
+            out = self.action_head(y)
+            return PolicyOutput(
+                mean=out[..., : self.num_actions],
+                log_std=clamp_log_std(out[..., self.num_actions :]),
+            )
+        assert keys is not None and obs is not None
+        kinds, lead = self.kinds, y.shape[:-1]
+        query = self.pointer_query(y).reshape(*lead, kinds, self.features)
+        pointer_logits = jnp.einsum("...kf,...pf->...kp", query, keys) / math.sqrt(self.features)
+        in_view = obs.entity_mask[..., : obs.entity_mask.shape[-1] - 1]
+        target = self.target_head(y).reshape(*lead, kinds, 4)
+        return ParametrisedOutput(
+            kind_logits=self.kind_head(y),
+            pointer_logits=jnp.where(in_view[..., None, :], pointer_logits, MASKED_LOGIT),
+            pointer_mask=in_view,
+            mean=target[..., :2],
+            log_std=clamp_log_std(target[..., 2:]),
         )
 
     def __call__(
         self, carry: PolicyCarry, obs: Observation, reset: jax.Array
-    ) -> tuple[PolicyCarry, PolicyOutput]:
+    ) -> tuple[PolicyCarry, AnyPolicyOutput]:
         """One step. obs: leading axes [...]; reset bool[...] zeroes the carry of those rows
         first (set it on the first step of an episode)."""
-        carry, y = self.out_r(carry, self.embed(obs), reset)
-        return carry, self.head(y)
+        x, keys = self.encode(obs)
+        carry, y = self.out_r(carry, x, reset)
+        return carry, self.head(y, keys, obs)
 
     def unroll(
         self,
@@ -318,9 +406,9 @@ class AttentionPolicy(nn.Module):
         reset_seq: jax.Array,
         time_axis: int = 0,
         visible_fraction: Capacity | None = None,
-    ) -> tuple[PolicyCarry, PolicyOutput]:
+    ) -> tuple[PolicyCarry, AnyPolicyOutput]:
         """T steps: obs_seq with leading axes [T, ...], reset_seq bool[T, ...] ->
-        (carry after step T, PolicyOutput with leading axes [T, ...]). Equals T calls of
+        (carry after step T, the output with leading axes [T, ...]). Equals T calls of
         ``__call__``.
 
         ``time_axis=1`` takes and returns batch-major sequences ([B, T, ...]; carry [B, ...]):
@@ -329,10 +417,10 @@ class AttentionPolicy(nn.Module):
         """
         if time_axis not in (0, 1):
             raise ValueError(f"time_axis={time_axis!r} is invalid: it must be 0 or 1")
-        x = self.embed(obs_seq, visible_fraction)
+        x, keys = self.encode(obs_seq, visible_fraction)
         if time_axis == 1:
             x, reset_seq = jnp.swapaxes(x, 0, 1), jnp.swapaxes(reset_seq, 0, 1)
         carry, y = self.out_r.sequence(carry, x, reset_seq)
         if time_axis == 1:
             y = jnp.swapaxes(y, 0, 1)
-        return carry, self.head(y)
+        return carry, self.head(y, keys, obs_seq)

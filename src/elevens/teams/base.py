@@ -60,13 +60,14 @@ class Team:
 
     actions: int = 2
     """Action values its policy gives: 2, the simulator's (move, rot); 12, the thesis's
-    12-value action (a game above the core that takes it)."""
+    12-value action (a game above the core that takes it); 4, a parametrised action
+    (kind, pointer, x, y)."""
 
     def check_size(self, players_per_team: int, actions: int = 2) -> None:
         """Raise ``ValueError`` unless the team can play ``players_per_team`` a side in a game
         that takes ``actions`` action values (2: the simulator's own game)."""
         if self.actions != actions:
-            if actions == 2:
+            if actions == 2 and self.actions == 12:
                 raise ValueError(
                     f"team {self.name!r} ({self.spec}) gives the thesis's {self.actions}-value "
                     "action, not the simulator's (move, rot): it plays the game it was made "

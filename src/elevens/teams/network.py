@@ -10,7 +10,7 @@ import jax
 import jax.numpy as jnp
 
 from elevens.env.state import Observation
-from elevens.nets.policy import AttentionPolicy, PolicyCarry, PolicyOutput
+from elevens.nets.policy import AnyPolicyOutput, AttentionPolicy, PolicyCarry
 
 
 @dataclasses.dataclass(frozen=True)
@@ -25,7 +25,8 @@ class NetworkTeam:
     policy: AttentionPolicy = AttentionPolicy()
     """The network; its configuration must match the params passed to ``act``."""
     deterministic: bool = False
-    """True: play the mode ``tanh(mean)``; False: sample from the tanh Gaussian."""
+    """True: play the mode (``tanh(mean)``; with the parametrised head the likeliest kind and
+    slot too); False: sample from the policy's distribution."""
     name: str = "network"
     """Shown in match reports and tournaments."""
 
@@ -36,13 +37,14 @@ class NetworkTeam:
     def act(
         self, params: Any, carry: PolicyCarry, obs: Observation, key: jax.Array
     ) -> tuple[PolicyCarry, jax.Array]:
-        """obs: one team's Observation, leading axis [n] -> (carry, actions f32[n, 2] in (-1, 1)).
+        """obs: one team's Observation, leading axis [n] -> (carry, actions f32[n, 2] in (-1, 1);
+        f32[n, 4] (kind, pointer, x, y) with the parametrised head).
 
         The carry is reset only by ``init_carry``: one match episode is one policy episode.
         """
         no_reset = jnp.zeros(obs.self_features.shape[:-1], bool)
         carry, output = cast(
-            tuple[PolicyCarry, PolicyOutput], self.policy.apply(params, carry, obs, no_reset)
+            tuple[PolicyCarry, AnyPolicyOutput], self.policy.apply(params, carry, obs, no_reset)
         )
         distribution = output.distribution()
         if self.deterministic:

@@ -160,11 +160,14 @@ def register_game(env_config: type[EnvConfig]) -> None:
 # own game they held their defaults (any other value was refused) and are dropped on reading.
 _OTHER_GAMES_FIELDS = {"stamina": False, "goalie": False, "see_period": 1}
 
-NETWORK_ACTIONS = (2, 12)
+NETWORK_ACTIONS = (2, 4, 12)
+NETWORK_HEADS = ("gaussian", "parametrised")
+PARAMETRISED_ACTIONS = 4
 # Fields added after config version 2 whose default is all that older versions knew: filled
 # without a warning.
 _SILENT_DEFAULTS = (
-    "learner.network.actions", "learner.env.physics", "learner.env.see_period",
+    "learner.network.actions", "learner.network.head", "learner.network.kinds",
+    "learner.env.physics", "learner.env.see_period",
     "learner.env.stamina", "learner.env.goalie", "learner.env.game.possession_shaping_weight",
     "learner.env.game.possession_radius", "learner.env.game.possession_by",
     "learner.env.game.observation_noise", "learner.env.randomize",
@@ -190,7 +193,16 @@ class NetworkConfig:
     actions: int = 2
     """Policy outputs: 2, the simulator's (move, rot); 12, the thesis's 12-value action (table
     4.1), for a game that takes it (``EnvConfig.actions``) or one played outside the
-    simulator."""
+    simulator; 4, a parametrised action (kind, pointer, x, y), which ``head`` 'parametrised'
+    gives as such (the Gaussian head gives 4 continuous values)."""
+    head: str = "gaussian"
+    """The action head. 'gaussian': a tanh-squashed Gaussian over ``actions`` values.
+    'parametrised': a discrete kind, a pointer at a teammate or opponent slot (by attention over
+    the encoder's per-entity embeddings) and a target (x, y) in [-1, 1]^2, the action
+    (kind, pointer, x, y) (``nets.distributions.ParametrisedDistribution``); needs
+    ``actions`` 4, ``kinds`` and attention."""
+    kinds: int = 0
+    """The parametrised head's number of kinds K (>= 1); 0 with the Gaussian head."""
 
     def policy(self) -> Any:
         """The ``AttentionPolicy`` module of this config."""
@@ -204,6 +216,7 @@ class NetworkConfig:
             use_attention=self.use_attention,
             use_lstm=self.use_lstm,
             num_actions=self.actions,
+            kinds=self.kinds if self.head == "parametrised" else 0,
         )
 
     def critic(self) -> Any:
@@ -982,8 +995,9 @@ def _validate_network(network: NetworkConfig) -> None:
         _int_at_least(f"network.{name}", getattr(network, name), 1)
     _require(
         network.actions in NETWORK_ACTIONS,
-        f"network.actions={network.actions!r} is invalid: it must be 2 (move, rot) or 12 (the "
-        "thesis's 12-value action of table 4.1)",
+        f"network.actions={network.actions!r} is invalid: it must be 2 (move, rot), 4 (a "
+        "parametrised action: kind, pointer, x, y) or 12 (the thesis's 12-value action of table "
+        "4.1)",
     )
     _require(
         network.features % network.num_heads == 0,
@@ -995,6 +1009,34 @@ def _validate_network(network: NetworkConfig) -> None:
         _require(
             isinstance(value, bool),
             f"network.{name}={value!r} is invalid: it must be True or False",
+        )
+    _require(
+        network.head in NETWORK_HEADS,
+        f"network.head={network.head!r} is invalid: allowed values are {NETWORK_HEADS}",
+    )
+    if network.head == "parametrised":
+        _require(
+            _is_int(network.kinds) and network.kinds >= 1,
+            f"network.kinds={network.kinds!r} is invalid with network.head='parametrised': it "
+            "must be an int >= 1 (the number of discrete kinds)",
+        )
+        _require(
+            network.actions == PARAMETRISED_ACTIONS,
+            f"network.actions={network.actions!r} is invalid with network.head='parametrised': "
+            f"its action is {PARAMETRISED_ACTIONS} values (kind, pointer, x, y); set "
+            f"network.actions={PARAMETRISED_ACTIONS}",
+        )
+        _require(
+            network.use_attention is True,
+            f"network.use_attention={network.use_attention!r} is invalid with "
+            "network.head='parametrised': its pointer attends over the attention encoder's "
+            "per-entity embeddings",
+        )
+    else:
+        _require(
+            network.kinds == 0,
+            f"network.kinds={network.kinds!r} is invalid with network.head='gaussian': kinds "
+            "belong to network.head='parametrised' (leave it 0)",
         )
 
 

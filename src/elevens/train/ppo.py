@@ -457,14 +457,14 @@ class UpdateBatch(struct.PyTreeNode):
 
     obs: Observation  # leading [G, n, T]
     global_state: GlobalState  # leading [G, T] the learner's critic input
-    pre_tanh: jax.Array  # f32[G, n, T, 2]
+    pre_tanh: jax.Array  # f32[G, n, T, A] the raw samples (``play.NetworkSample``)
     log_prob: jax.Array  # f32[G, n, T] rollout-time log-probabilities
     reset: jax.Array  # bool[G, n, T]
     initial_carry: PolicyCarry  # leaves f32[G, n, lstm_features]
     returns: jax.Array  # f32[G, n, T] critic targets (Monte Carlo returns or GAE lambda-returns)
     advantages: jax.Array | None  # f32[G, n, T] GAE advantages; None: A = G - V in the loss
     old_values: jax.Array | None  # f32[G, n, T] rollout-time values, only for value clipping
-    entropy_noise: jax.Array | None = None  # f32[G, n, T, 2] only for the squashed entropy
+    entropy_noise: jax.Array | None = None  # f32[G, n, T, A] only for the squashed entropy
     policy_mask: jax.Array | None = None  # bool[G, n, T] False where a routine played (ppo_loss)
 
 

@@ -64,8 +64,9 @@ class Transition:
     #                            the learning team's view, the same for the n players of a game
     #                            (the trainer reads Rollout.game_global_state, once per game; in
     #                            its compiled iteration XLA drops this unused copy)
-    pre_tanh: jax.Array  # f32[U, T, 2] the Gaussian samples u; the actions are tanh(u)
-    log_prob: jax.Array  # f32[U, T] log pi(tanh(u)) under the rollout params (exact, from u)
+    pre_tanh: jax.Array  # f32[U, T, A] the raw samples (``play.NetworkSample``): the Gaussian's
+    #                      u, the actions tanh(u); the parametrised head's (kind, pointer, u)
+    log_prob: jax.Array  # f32[U, T] log pi(action) under the rollout params (exact, from u)
     reward: jax.Array  # f32[U, T] goal reward plus the shaping in force this iteration
     done: jax.Array  # bool[U, T] True at the last step of an episode
     truncated: jax.Array  # bool[U, T] True where that end is the time limit (every end here)
@@ -110,7 +111,7 @@ class StepRecord(struct.PyTreeNode):
 
     obs: Observation  # leading [G, n]
     global_state: GlobalState  # leading [G]
-    pre_tanh: jax.Array  # f32[G, n, 2]
+    pre_tanh: jax.Array  # f32[G, n, A]
     log_prob: jax.Array  # f32[G, n]
     reward: jax.Array  # f32[G, n]
     done: jax.Array  # bool[G]

@@ -273,7 +273,7 @@ def update_batch(
         return jax.tree.map(lambda x: x.reshape(setup.games, n, *x.shape[1:]), tree)
 
     maybe = lambda x: None if x is None else by_game(x)  # noqa: E731
-    return setup.shard_games(ppo.UpdateBatch(
+    batch = ppo.UpdateBatch(
         obs=by_game(t.obs),
         global_state=data.game_global_state,
         pre_tanh=by_game(t.pre_tanh),
@@ -285,7 +285,8 @@ def update_batch(
         old_values=by_game(values) if setup.config.ppo.clip_value else None,
         entropy_noise=maybe(entropy_noise),
         policy_mask=policy_played(setup, data),
-    ))
+    )
+    return setup.shard_games(batch)
 
 
 def policy_played(setup: Setup, data: Rollout) -> jax.Array | None:

@@ -105,23 +105,23 @@ class Setup:
     and hashed by identity (it keys the compile caches, and a mix team's params are arrays)."""
 
     config: LearnerConfig
-    env: Soccer
-    env_params: EnvParams
-    policy: AttentionPolicy
-    critic: AttentionCritic
+    mesh: Mesh
     optimizer: optax.GradientTransformation
     opponent: OpponentStrategy
-    fixed_opponents: tuple[FixedOpponent, ...]
-    """The teams of ``opponent.mix`` that play the last games of every iteration."""
     self_games: int
     """The games against ``opponent`` (the first ones); the rest are the fixed teams'."""
-    mesh: Mesh
-    value_and_grad: Callable[[LearnerParams, ppo.UpdateBatch], Any]
-    noisy: bool
-    """The players see with noise (``Randomize.noisy``): the unroll draws it."""
+    fixed_opponents: tuple[FixedOpponent, ...]
+    """The teams of ``opponent.mix`` that play the last games of every iteration."""
     mix_blocks: tuple[tuple[str, int, int], ...]
     """With fixed teams: (metric label, first game, games) of each opponent of ``opponent.mix``
     that plays, self-play first, for the outcome against each."""
+    policy: AttentionPolicy
+    critic: AttentionCritic
+    value_and_grad: Callable[[LearnerParams, ppo.UpdateBatch], Any]
+    env_params: EnvParams
+    env: Soccer
+    noisy: bool
+    """The players see with noise (``Randomize.noisy``): the unroll draws it."""
 
     @property
     def players(self) -> int:

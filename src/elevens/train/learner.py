@@ -53,7 +53,6 @@ from elevens.train import opponents as opp
 from elevens.train import parallel, ppo
 from elevens.train.config import (
     LearnerConfig,
-    game_actions,
     opponent_mix,
     self_play_games,
     validate_learner,
@@ -106,18 +105,23 @@ class Setup:
     and hashed by identity (it keys the compile caches, and a mix team's params are arrays)."""
 
     config: LearnerConfig
-    env: Soccer
-    env_params: EnvParams
-    policy: AttentionPolicy
-    critic: AttentionCritic
+    mesh: Mesh
     optimizer: optax.GradientTransformation
     opponent: OpponentStrategy
-    fixed_opponents: tuple[FixedOpponent, ...]
-    """The teams of ``opponent.mix`` that play the last games of every iteration."""
     self_games: int
     """The games against ``opponent`` (the first ones); the rest are the fixed teams'."""
-    mesh: Mesh
+    fixed_opponents: tuple[FixedOpponent, ...]
+    """The teams of ``opponent.mix`` that play the last games of every iteration."""
+    mix_blocks: tuple[tuple[str, int, int], ...]
+    """With fixed teams: (metric label, first game, games) of each opponent of ``opponent.mix``
+    that plays, self-play first, for the outcome against each."""
+    policy: AttentionPolicy
+    critic: AttentionCritic
     value_and_grad: Callable[[LearnerParams, ppo.UpdateBatch], Any]
+    env_params: EnvParams
+    env: Soccer
+    noisy: bool
+    """The players see with noise (``Randomize.noisy``): the unroll draws it."""
 
     @property
     def players(self) -> int:
@@ -148,8 +152,7 @@ def iteration(setup: Setup, state: TrainState) -> tuple[TrainState, Metrics]:
 
 def collect(setup: Setup, state: TrainState, rollout_key: jax.Array) -> Rollout:
     """1. Algorithm 4 lines 4-11: one episode of every game, shaping as currently in force."""
-    env_config = setup.config.env
-    game = env_config.game
+    game = setup.env_params
     weights = shaping_weights(
         state.shaping,
         game.ball_shaping_weight,
@@ -162,8 +165,8 @@ def collect(setup: Setup, state: TrainState, rollout_key: jax.Array) -> Rollout:
         "approach_shaping_weight": weights.approach,
         "possession_shaping_weight": weights.possession,
     }
-    params_now = dataclasses.replace(setup.env_params, **shaping)
-    randomize = env_config.randomize
+    params_now = dataclasses.replace(game, **shaping)
+    randomize = setup.config.env.randomize
     if randomize.enabled:
         # Each game its own constants for the episode, drawn from the rollout key.
         params_now = training_games(rollout_key, params_now, randomize, setup.games)
@@ -175,11 +178,11 @@ def collect(setup: Setup, state: TrainState, rollout_key: jax.Array) -> Rollout:
         setup.opponent.act_params(state.opponent),
         rollout_key,
         num_games=setup.games,
-        num_steps=env_config.game.episode_length,
+        num_steps=game.episode_length,
         opponent_per_game=setup.opponent.per_game,
         constrain_games=setup.shard_games,
         fixed_opponents=setup.fixed_opponents,
-        noisy=randomize.noisy(game),
+        noisy=setup.noisy,
     )
 
 
@@ -208,7 +211,8 @@ def improve(
         iteration=state.iteration + 1,
         env_steps=state.env_steps + jnp.asarray(steps_played, jnp.uint32),
     )
-    return new_state, iteration_metrics(setup, data, learned, opponent, state.shaping, shaping)
+    metrics = iteration_metrics(setup, data, learned, outcomes, opponent, state.shaping, shaping)
+    return new_state, metrics
 
 
 def advantages(
@@ -269,7 +273,7 @@ def update_batch(
         return jax.tree.map(lambda x: x.reshape(setup.games, n, *x.shape[1:]), tree)
 
     maybe = lambda x: None if x is None else by_game(x)  # noqa: E731
-    return setup.shard_games(ppo.UpdateBatch(
+    batch = ppo.UpdateBatch(
         obs=by_game(t.obs),
         global_state=data.game_global_state,
         pre_tanh=by_game(t.pre_tanh),
@@ -281,7 +285,8 @@ def update_batch(
         old_values=by_game(values) if setup.config.ppo.clip_value else None,
         entropy_noise=maybe(entropy_noise),
         policy_mask=policy_played(setup, data),
-    ))
+    )
+    return setup.shard_games(batch)
 
 
 def policy_played(setup: Setup, data: Rollout) -> jax.Array | None:
@@ -313,15 +318,16 @@ def iteration_metrics(
     setup: Setup,
     data: Rollout,
     learned: Learned,
+    outcomes: jax.Array,
     opponent: OpponentState,
     shaping_before: ShapingState,
     shaping_after: ShapingState,
 ) -> Metrics:
     """One iteration's ``train/``, ``env/`` and ``opponent/`` metrics from its rollout, its
-    update, the opponent after it and the shaping state in force during (before) and after it."""
+    update, the learner's outcome in each game (f32[G], ``opponents.game_outcome``), the
+    opponent after it and the shaping state in force during (before) and after it."""
     t = data.transitions
     loss, values, returns = learned.update.metrics, learned.values, learned.returns
-    outcomes = opp.game_outcome(data.goals_for, data.goals_against)
     metrics = {
         "train/loss": loss.total,
         "train/policy_loss": loss.policy,
@@ -354,22 +360,13 @@ def iteration_metrics(
         ),
         "env/scoring_rate": shaping_scoring_rate(shaping_after),
         **setup.opponent.metrics(opponent),
-        **mix_metrics(setup, outcomes),
+        # With opponent.mix: the learner's mean outcome against each opponent.
+        **{
+            f"opponent/{label}/outcome": jnp.mean(outcomes[begin : begin + games])
+            for label, begin, games in setup.mix_blocks
+        },
     }
     return {name: jnp.asarray(v, jnp.float32) for name, v in metrics.items()}
-
-
-def mix_metrics(setup: Setup, outcomes: jax.Array) -> Metrics:
-    """With ``opponent.mix``: the learner's mean outcome against each opponent."""
-    if not setup.fixed_opponents:
-        return {}
-    metrics, begin = {}, 0
-    for spec, games in opponent_mix(setup.config):
-        if games:
-            label = metric_label(spec)
-            metrics[f"opponent/{label}/outcome"] = jnp.mean(outcomes[begin : begin + games])
-        begin += games
-    return metrics
 
 
 def metric_label(spec: str) -> str:
@@ -386,14 +383,26 @@ def metric_label(spec: str) -> str:
 class Learner:
     """Pure functions of one config. ``init(key, start=None) -> TrainState``;
     ``update_chunk(state) -> (state, metrics)`` runs K = ``config.iterations_per_chunk``
-    iterations (jitted; metrics are ``{name: f32[K]}``); ``update(state, num_iterations)``
-    another number (compiled once per number). ``iteration``, ``collect``, ``learn``,
-    ``improve`` and ``metrics`` are the stages above bound to this config, not jitted."""
+    iterations (jitted on first use; metrics are ``{name: f32[K]}``); ``update(state,
+    num_iterations)`` another number (compiled once per number). ``iteration``, ``collect``,
+    ``learn``, ``improve`` and ``metrics`` are the stages above bound to this config, not
+    jitted."""
 
     config: LearnerConfig
     setup: Setup
-    init: Callable[..., TrainState]
-    update_chunk: Callable[[TrainState], tuple[TrainState, Metrics]]
+
+    def init(self, key: jax.Array, start: LearnerParams | None = None) -> TrainState:
+        return init_state(self.setup, key, start)
+
+    @functools.cached_property
+    def update_chunk(self) -> Callable[[TrainState], tuple[TrainState, Metrics]]:
+        # Held by the learner: the chunk a run calls again and again never leaves the cache.
+        return _scan_iterations(self.setup, self.config.iterations_per_chunk)
+
+    def update(self, state: TrainState, num_iterations: int) -> tuple[TrainState, Metrics]:
+        if num_iterations == self.config.iterations_per_chunk:
+            return self.update_chunk(state)
+        return _scan_iterations(self.setup, num_iterations)(state)
 
     @property
     def env(self) -> Soccer:
@@ -443,17 +452,6 @@ class Learner:
     def metrics(self) -> Callable[..., Metrics]:
         return functools.partial(iteration_metrics, self.setup)
 
-    def update(self, state: TrainState, num_iterations: int) -> tuple[TrainState, Metrics]:
-        if num_iterations == self.config.iterations_per_chunk:
-            return self.update_chunk(state)
-        return _scan_iterations(self.setup, num_iterations)(state)
-
-
-def make_optimizer(config: LearnerConfig) -> optax.GradientTransformation:
-    """Adam with the config's learning rate (table 6.1: 1e-4), one optimiser for both networks
-    (Algorithm 4 lines 22-23 step policy and critic on the same objective J)."""
-    return optax.adam(config.ppo.learning_rate)
-
 
 TeamLoader = Callable[[str, EnvParams, str], Team]
 """``(team spec, env params, config field) -> Team``: how the learner gets the fixed teams of
@@ -502,56 +500,60 @@ def train_state_shape(config: LearnerConfig, devices: int = 0) -> TrainState:
 
 @functools.lru_cache(maxsize=8)
 def _build_learner(config: LearnerConfig, load_team: TeamLoader | None, devices: int) -> Learner:
-    setup = make_setup(config, load_team, devices)
-    return Learner(
-        config=config,
-        setup=setup,
-        # Not jitted as a whole: the networks' init is (and is shared, see
-        # _network_initializer); the rest is a few zeros and copies.
-        init=functools.partial(init_state, setup),
-        update_chunk=_scan_iterations(setup, config.iterations_per_chunk),
-    )
+    # The iterations compile on the first update_chunk (cached with the setup: _scan_iterations);
+    # the networks' init compiles on the first init (shared: _network_initializer).
+    return Learner(config=config, setup=make_setup(config, load_team, devices))
 
 
 def make_setup(
     config: LearnerConfig, load_team: TeamLoader | None = None, devices: int = 0
 ) -> Setup:
     """The static parts of an iteration of ``config`` on ``devices`` (the fixed teams of
-    ``opponent.mix`` only with ``load_team``)."""
+    ``opponent.mix`` only with ``load_team``), built from the top layer down: what the config
+    says, the devices, the optimiser and the opponent, then the fixed teams, the networks and
+    the game."""
+    mix = opponent_mix(config)
+    self_games = mix[0][1]
+    mix_blocks = _mix_blocks(mix)
     n = config.players_per_team
+    hp = config.ppo
+    o = config.opponent
     env_params = config.env.game
-    policy, critic = config.network.policy(), config.network.critic()
     mesh = parallel.data_mesh(devices)
     _check_device_split(config, mesh)
-    hp = config.ppo
-    loss = functools.partial(ppo.sequence_loss, policy, critic, hp)
-    return Setup(
-        config=config,
-        env=config.env.make_env(n),
-        env_params=env_params,
-        policy=policy,
-        critic=critic,
-        optimizer=make_optimizer(config),
-        opponent=make_opponent(config),
-        fixed_opponents=_fixed_opponents(config, env_params, load_team) if load_team else (),
-        self_games=self_play_games(config),
-        mesh=mesh,
-        value_and_grad=capacity.value_and_grad(
-            loss,
-            lambda batch: batch.obs,
-            capacity.compacts(config.network.use_attention, n),
-        ),
-    )
-
-
-def make_opponent(config: LearnerConfig) -> OpponentStrategy:
-    """The training opponent of ``config.opponent``."""
-    o = config.opponent
-    return opp.make_opponent(
+    # Adam with the config's learning rate (table 6.1: 1e-4), one optimiser for both networks
+    # (Algorithm 4 lines 22-23 step policy and critic on the same objective J).
+    optimizer = optax.adam(hp.learning_rate)
+    opponent = opp.make_opponent(
         o.kind, polyak_tau=o.polyak_tau, freeze_threshold=o.freeze_threshold,
         league_capacity=o.league_capacity, league_window=o.league_window,
         league_every=o.league_every, league_psi=o.league_psi,
-        league_min_games=o.league_min_games, index_count=opponent_index_count(config),
+        league_min_games=o.league_min_games, index_count=_index_count(self_games),
+    )
+    fixed = (
+        _fixed_opponents(mix[1:], n, config.env.actions, env_params, load_team)
+        if load_team else ()
+    )
+    policy, critic = config.network.policy(), config.network.critic()
+    value_and_grad = capacity.value_and_grad(
+        functools.partial(ppo.sequence_loss, policy, critic, hp),
+        lambda batch: batch.obs,
+        capacity.compacts(config.network.use_attention, n),
+    )
+    return Setup(
+        config=config,
+        mesh=mesh,
+        optimizer=optimizer,
+        opponent=opponent,
+        self_games=self_games,
+        fixed_opponents=fixed,
+        mix_blocks=mix_blocks if fixed else (),
+        policy=policy,
+        critic=critic,
+        value_and_grad=value_and_grad,
+        env_params=env_params,
+        env=config.env.make_env(n),
+        noisy=config.env.randomize.noisy(env_params),
     )
 
 
@@ -614,25 +616,41 @@ def _scan_iterations(
 
 
 def _fixed_opponents(
-    config: LearnerConfig, env_params: EnvParams, load_team: TeamLoader
+    teams: list[tuple[str, int]], players_per_team: int, actions: int, env_params: EnvParams,
+    load_team: TeamLoader,
 ) -> tuple[FixedOpponent, ...]:
-    """The teams of ``opponent.mix`` (not self-play), loaded once per learner."""
-    n = config.players_per_team
+    """The fixed teams of ``opponent.mix`` (``teams``: spec and games an iteration), loaded
+    once per learner and checked against the game's size and action."""
     fixed = []
-    for spec, games in opponent_mix(config)[1:]:
+    for spec, games in teams:
         team = load_team(spec, env_params, "opponent.mix")
         try:
-            team.check_size(n, game_actions(config))
+            team.check_size(players_per_team, actions)
         except ValueError as error:
             raise ValueError(f"opponent.mix team {spec!r}: {error}") from error
         fixed.append(FixedOpponent(policy=team.policy, params=team.params, games=games))
     return tuple(fixed)
 
 
+def _mix_blocks(mix: list[tuple[str, int]]) -> tuple[tuple[str, int, int], ...]:
+    """``opponent_mix`` as (metric label, first game, games) of each opponent that plays."""
+    blocks, begin = [], 0
+    for spec, games in mix:
+        if games:
+            blocks.append((metric_label(spec), begin, games))
+        begin += games
+    return tuple(blocks)
+
+
 def opponent_index_count(config: LearnerConfig) -> int:
-    """Length of ``OpponentState.indices``: one per self-play game, and at least one (a
-    checkpoint cannot hold an empty array; without self-play nothing reads it)."""
-    return max(self_play_games(config), 1)
+    """Length of ``OpponentState.indices`` for ``config`` (``_index_count``)."""
+    return _index_count(self_play_games(config))
+
+
+def _index_count(self_games: int) -> int:
+    """One opponent index per self-play game, and at least one (a checkpoint cannot hold an
+    empty array; without self-play nothing reads it)."""
+    return max(self_games, 1)
 
 
 def _check_device_split(config: LearnerConfig, mesh: Mesh) -> None:

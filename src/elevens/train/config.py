@@ -160,7 +160,7 @@ def register_game(env_config: type[EnvConfig]) -> None:
 # own game they held their defaults (any other value was refused) and are dropped on reading.
 _OTHER_GAMES_FIELDS = {"stamina": False, "goalie": False, "see_period": 1}
 
-NETWORK_ACTIONS = (2, 12)
+NETWORK_ACTIONS = (2, 4, 12)
 # Fields added after config version 2 whose default is all that older versions knew: filled
 # without a warning.
 _SILENT_DEFAULTS = (
@@ -982,8 +982,9 @@ def _validate_network(network: NetworkConfig) -> None:
         _int_at_least(f"network.{name}", getattr(network, name), 1)
     _require(
         network.actions in NETWORK_ACTIONS,
-        f"network.actions={network.actions!r} is invalid: it must be 2 (move, rot) or 12 (the "
-        "thesis's 12-value action of table 4.1)",
+        f"network.actions={network.actions!r} is invalid: it must be 2 (move, rot), 4 (a "
+        "parametrised action: kind, pointer, x, y) or 12 (the thesis's 12-value action of table "
+        "4.1)",
     )
     _require(
         network.features % network.num_heads == 0,

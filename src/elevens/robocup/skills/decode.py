@@ -96,7 +96,10 @@ def slot_targets(unum: Any, ball: Any, offside_x: Any, xp: Any = np,
     """Each player's formation slot shifted with the ball, on the pitch and onside: unum
     int[m] (shirt numbers), ball f32[m, 2], offside_x f32[m] -> f32[m, 2], team frame.
     ``half``: the field's half length and width (the slots scale from the server's)."""
-    home, limit = xp.asarray(FORMATION)[unum - 1], (48.0, 32.0)
+    # Shirt numbers known at trace time (a numpy array) cut the table there: no gather.
+    home = xp.asarray(FORMATION[unum - 1] if isinstance(unum, np.ndarray) else
+                      xp.asarray(FORMATION)[unum - 1])
+    limit = (48.0, 32.0)
     if not (isinstance(half[0], float | int) and tuple(half) == SERVER_HALF):
         scale = (half[0] / SERVER_HALF[0], half[1] / SERVER_HALF[1])
         home = home * xp.stack([xp.asarray(scale[0]), xp.asarray(scale[1])]).astype(home.dtype)
@@ -150,7 +153,10 @@ def decode(action: Any, context: SkillContext, players_per_team: int, *,
     kind = xp.clip(xp.round(action[:, 0]), 0, OPEN_KINDS - 1).astype(xp.int32)
     pointer = xp.clip(xp.round(action[:, 1]), 0, 2 * n - 1).astype(xp.int32)
     x, y = xp.clip(action[:, 2], -1.0, 1.0), xp.clip(action[:, 3], -1.0, 1.0)
-    target = xp.asarray(_layout(n))[context.observer, pointer]  # world index, 2n: the ball
+    # World index (2n: the ball); a one-hot sum, not a gather (slow on XLA's CPU backend).
+    table = _layout(n)[context.observer] if isinstance(context.observer, np.ndarray) else (
+        xp.asarray(_layout(n))[context.observer])
+    target = (table * (pointer[:, None] == np.arange(2 * n)[None, :])).sum(axis=1)
     team = context.observer // n
     is_player = target < 2 * n
     mate = is_player & (target // n == team)

@@ -29,14 +29,13 @@ from elevens.robocup.bodies import TACKLE, Commands, RcssSoccer, kickable, rcss_
 from elevens.robocup.sim import SERVER_FIELD, RcssEnvConfig
 from elevens.robocup.skills import controllers
 from elevens.robocup.skills.decode import (
-    OPEN_KINDS,
     SKILL_ACTION_SIZE,
     SkillChoice,
     SkillContext,
     decode,
     shirt_numbers,
 )
-from elevens.robocup.skills.team import SkillsNaiveTeam, SkillsRandomTeam
+from elevens.robocup.skills.team import SkillsNaiveTeam, SkillsRandomTeam, random_actions
 from elevens.teams.registry import register_team
 from elevens.train.config import (
     EnvConfig,
@@ -90,8 +89,8 @@ class SkillSoccer(RcssSoccer):
             opponent_x, jnp.ones((2 * n, n), bool), ball[:, 0], params.half_length
         )
         return SkillContext(
-            observer=jnp.arange(2 * n),
-            unum=jnp.asarray(np.tile(shirt_numbers(n), 2)),
+            observer=np.arange(2 * n),  # static: the decode's tables are cut at trace time
+            unum=np.tile(shirt_numbers(n), 2),
             position=own,
             ball=ball,
             offside_x=offside,
@@ -116,10 +115,10 @@ class SkillSoccer(RcssSoccer):
         self.check_actions(actions)
         choice = self.decode(state, actions, params)
         m = self.num_players
-        body = controllers.Bodies(
-            position=state.positions, velocity=state.velocities, heading=state.headings,
-            ball=jnp.broadcast_to(state.ball_position, (m, 2)),
-            ball_velocity=jnp.broadcast_to(state.ball_velocity, (m, 2)),
+        body = controllers.Bodies.of(
+            state.positions, state.velocities, state.headings,
+            jnp.broadcast_to(state.ball_position, (m, 2)),
+            jnp.broadcast_to(state.ball_velocity, (m, 2)), self.body,
         )
         command = controllers.commands(
             choice, body, state.positions, jnp.asarray(team_signs(params)), params.half_length,
@@ -143,13 +142,7 @@ class SkillSoccer(RcssSoccer):
 
     def sample_actions(self, key: jax.Array, shape: tuple[int, ...] = ()) -> jax.Array:
         """Uniform random actions f32[*shape, 2, n, 4]: every kind, every slot, every point."""
-        n = self.players_per_team
-        kind_key, pointer_key, point_key = jax.random.split(key, 3)
-        full = (*shape, 2, n)
-        kind = jax.random.randint(kind_key, full, 0, OPEN_KINDS).astype(jnp.float32)
-        pointer = jax.random.randint(pointer_key, full, 0, 2 * n).astype(jnp.float32)
-        point = jax.random.uniform(point_key, (*full, 2), minval=-1.0, maxval=1.0)
-        return jnp.concatenate([kind[..., None], pointer[..., None], point], axis=-1)
+        return random_actions(key, (*shape, 2, self.players_per_team))
 
 
 @dataclasses.dataclass(frozen=True)

@@ -37,7 +37,7 @@ from elevens.robocup.skills.observe import Observation as SkillObservation
 from elevens.robocup.skills.space import Kind
 from elevens.teams.scripted import Field
 
-__all__ = ["SkillsNaiveTeam", "SkillsRandomTeam", "skill_observation"]
+__all__ = ["SkillsNaiveTeam", "SkillsRandomTeam", "random_actions", "skill_observation"]
 
 SKILLS_FIELD = Field.of(rcss_field())
 _S = {name: i for i, name in enumerate(SELF_FEATURES)}
@@ -124,7 +124,7 @@ def skill_observation(obs: Observation, field: Field,
     offside = controllers.offside_line(opps[..., 0], opps_valid, ball[:, 0], field.half_length)
     zeros = jnp.zeros(n)
     fields: dict[str, Any] = dict(
-        unum=jnp.asarray(shirt_numbers(n)),
+        unum=shirt_numbers(n),  # static
         goalie=jnp.zeros(n, bool),
         kickable=kickable,
         pos=pos,
@@ -187,7 +187,7 @@ class SkillsNaiveTeam:
         mate = jnp.asarray(player_of_shirt)[jnp.clip(index, 0, PLAYERS)]
         target = jnp.where(kind == Kind.PASS, mate, jnp.where(kind == Kind.MARK, n + mate, -1))
         context = SkillContext(
-            observer=jnp.arange(n), unum=view.unum, position=view.pos, ball=view.ball,
+            observer=np.arange(n), unum=view.unum, position=view.pos, ball=view.ball,
             offside_x=view.offside_x, kickable=view.kickable,
         )
         return encode(
@@ -209,9 +209,15 @@ class SkillsRandomTeam:
 
     def act(self, params: Any, carry: Any, obs: Observation,
             key: jax.Array) -> tuple[Any, jax.Array]:
-        n = obs.self_features.shape[0]
-        kind_key, pointer_key, point_key = jax.random.split(key, 3)
-        kind = jax.random.randint(kind_key, (n,), 0, OPEN_KINDS).astype(jnp.float32)
-        pointer = jax.random.randint(pointer_key, (n,), 0, 2 * n).astype(jnp.float32)
-        point = jax.random.uniform(point_key, (n, 2), minval=-1.0, maxval=1.0)
-        return carry, jnp.concatenate([kind[:, None], pointer[:, None], point], axis=-1)
+        return carry, random_actions(key, (obs.self_features.shape[0],))
+
+
+def random_actions(key: jax.Array, shape: tuple[int, ...]) -> jax.Array:
+    """Uniform skill actions f32[*shape, 4] for players of a team of ``shape[-1]``: every kind,
+    every slot of its observation, every point; one draw (each draw is a loop of its own on
+    a CPU)."""
+    n = shape[-1]
+    u = jax.random.uniform(key, (*shape, SKILL_ACTION_SIZE))
+    kind = jnp.minimum(jnp.floor(u[..., 0] * OPEN_KINDS), OPEN_KINDS - 1)
+    pointer = jnp.minimum(jnp.floor(u[..., 1] * 2 * n), 2 * n - 1)
+    return jnp.concatenate([kind[..., None], pointer[..., None], 2.0 * u[..., 2:] - 1.0], axis=-1)

@@ -257,11 +257,16 @@ class GameBenchResult:
     """Games stepped together (vmap inside one scan)."""
     steps_per_s: float
     """Median game steps per second over the repeats."""
+    steps_per_cpu_s: float
+    """Median game steps per second of this process's CPU time (all its threads): what the
+    game costs, less shaken than the wall clock by other processes on a busy machine."""
     compile_s: float
     repeats: int
     backend: str
     ratio_to_first: float
     """steps/s over the first game's, measured in the same run (repeats interleaved)."""
+    cpu_ratio_to_first: float
+    """The same ratio of steps per CPU second."""
 
 
 GameMaker = Callable[[int], tuple[Any, EnvParams, ActionSampler]]
@@ -286,6 +291,7 @@ def run_games_bench(
             runs: dict[str, Callable[[], jax.Array]] = {}
             compile_s: dict[str, float] = {}
             times: dict[str, list[float]] = {name: [] for name in games}
+            cpu: dict[str, list[float]] = {name: [] for name in games}
             for name, make in games.items():
                 runs[name] = _game_run(*make(n), b, steps)
                 start = time.perf_counter()
@@ -293,22 +299,28 @@ def run_games_bench(
                 compile_s[name] = time.perf_counter() - start
             for _ in range(repeats):
                 for name, run in runs.items():
-                    start = time.perf_counter()
+                    start, start_cpu = time.perf_counter(), time.process_time()
                     jax.block_until_ready(run())
                     times[name].append(time.perf_counter() - start)
+                    cpu[name].append(time.process_time() - start_cpu)
             rates = {name: b * steps / statistics.median(times[name]) for name in games}
+            cpu_rates = {name: b * steps / statistics.median(cpu[name]) for name in games}
             first = rates[next(iter(games))]
+            cpu_first = cpu_rates[next(iter(games))]
             for name in games:
                 result = GameBenchResult(
                     game=name, players=n, batch=b, steps_per_s=rates[name],
-                    compile_s=compile_s[name], repeats=repeats, backend=jax.default_backend(),
+                    steps_per_cpu_s=cpu_rates[name], compile_s=compile_s[name],
+                    repeats=repeats, backend=jax.default_backend(),
                     ratio_to_first=rates[name] / first,
+                    cpu_ratio_to_first=cpu_rates[name] / cpu_first,
                 )
                 results.append(result)
                 print_fn(json.dumps(asdict(result)) if as_json else (
-                    f"{n:>2}v{n:<2} {name:<10} batch {b:>6}: {result.steps_per_s:>12,.0f} "
-                    f"steps/s (compile {result.compile_s:.1f} s) = "
-                    f"{result.ratio_to_first:.2f}x {next(iter(games))}"
+                    f"{n:>2}v{n:<2} {name:<10} batch {b:>6}: {result.steps_per_s:>10,.0f} "
+                    f"steps/s = {result.ratio_to_first:.2f}x {next(iter(games))}; "
+                    f"{result.steps_per_cpu_s:>10,.0f} steps/CPU s = "
+                    f"{result.cpu_ratio_to_first:.2f}x (compile {result.compile_s:.1f} s)"
                 ))
     return results
 

@@ -365,3 +365,17 @@ def test_the_tournament_plays_skill_teams_in_the_skill_game(tmp_path: Any) -> No
                                          "naive the simulator's 2-value one"):
         eval_main(["tournament", "naive", "skills_naive", "--games", "2", "--players", "1",
                    "--out", str(tmp_path / "mixed")])
+
+
+def test_bench_env_times_registered_games_side_by_side() -> None:
+    from elevens.bench.env import run_games_bench
+    from elevens.cli.app import _bench_game
+
+    with pytest.raises(ValueError, match=r"--games 'nope' is unknown: known games are .*skills"):
+        _bench_game("nope")
+    lines: list[str] = []
+    results = run_games_bench({"thesis": _bench_game("thesis"), "skills": _bench_game("skills")},
+                              players=(1,), batch=(2,), steps=2, repeats=1,
+                              print_fn=lines.append)
+    assert [r.game for r in results] == ["thesis", "skills"] and len(lines) == 2
+    assert results[0].ratio_to_first == 1.0 and results[1].steps_per_cpu_s > 0

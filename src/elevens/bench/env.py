@@ -5,6 +5,10 @@ Two modes are timed in the same process, so their ratio is meaningful on a noisy
 - ``loop``: a Python loop calling a jitted single-game ``env.step`` (what a naive user writes).
 A "step" is one step of one game (all 2n players act). Compile time is reported separately, and
 the figure is the median over repeats.
+
+``run_games_bench`` times several games (any env with the simulator's reset/step contract, e.g.
+the games registered above the core) in scan mode side by side: their repeats interleaved, so a
+load that comes and goes weighs on each alike, and each game's rate over the first's.
 """
 
 from __future__ import annotations
@@ -67,15 +71,31 @@ def reset_games(env: Soccer, params: EnvParams, key: jax.Array, games: int) -> S
     return states
 
 
+ActionSampler = Callable[[jax.Array, int], jax.Array]
+"""``(key, batch) -> actions f32[batch, 2, n, k]``: the random actions of a benchmark."""
+
+
+def uniform_actions(players_per_team: int, actions: int = 2) -> ActionSampler:
+    """Actions uniform in [-1, 1], ``actions`` values a player."""
+
+    def sample(key: jax.Array, batch: int) -> jax.Array:
+        shape = (batch, 2, players_per_team, actions)
+        return jax.random.uniform(key, shape, minval=-1.0, maxval=1.0)
+
+    return sample
+
+
 def make_scan_runner(
-    env: Soccer, params: EnvParams, batch: int, steps: int
+    env: Soccer, params: EnvParams, batch: int, steps: int, sample: ActionSampler | None = None
 ) -> Callable[[State, jax.Array], tuple[State, jax.Array]]:
-    """A compiled ``(states, key) -> (states, checksum)`` that plays ``steps`` steps of a batch.
+    """A compiled ``(states, key) -> (states, checksum)`` that plays ``steps`` steps of a batch
+    with random actions (``sample``; default: the simulator's 2 values, uniform).
 
     The observation is computed from the carried state at the top of each step (as a policy would
     read it) and folded into a checksum, so XLA cannot drop it.
     """
     n = env.players_per_team
+    sample = uniform_actions(n) if sample is None else sample
     observe = jax.vmap(env.observe, in_axes=(0, None))
     transition = jax.vmap(env.transition, in_axes=(0, 0, 0, None))
 
@@ -85,7 +105,7 @@ def make_scan_runner(
             obs = observe(states, params)
             checksum = checksum + jnp.sum(obs.entities) + jnp.sum(obs.self_features)
             action_key, env_key = jax.random.split(step_key)
-            actions = jax.random.uniform(action_key, (batch, 2, n, 2), minval=-1.0, maxval=1.0)
+            actions = sample(action_key, batch)
             env_keys = jax.random.split(env_key, batch)
             states, rewards, _, _ = transition(env_keys, states, actions, params)
             return (states, checksum + jnp.sum(rewards)), None
@@ -226,6 +246,100 @@ def run_env_bench(
                     f"{scan.ratio_to_loop:,.0f}x the Python loop"
                 )
     return results
+
+
+@dataclass(frozen=True)
+class GameBenchResult:
+    game: str
+    players: int
+    """Players per team."""
+    batch: int
+    """Games stepped together (vmap inside one scan)."""
+    steps_per_s: float
+    """Median game steps per second over the repeats."""
+    steps_per_cpu_s: float
+    """Median game steps per second of this process's CPU time (all its threads): what the
+    game costs, less shaken than the wall clock by other processes on a busy machine."""
+    compile_s: float
+    repeats: int
+    backend: str
+    ratio_to_first: float
+    """steps/s over the first game's, measured in the same run (repeats interleaved)."""
+    cpu_ratio_to_first: float
+    """The same ratio of steps per CPU second."""
+
+
+GameMaker = Callable[[int], tuple[Any, EnvParams, ActionSampler]]
+"""``players_per_team -> (env, params, sample)``: a game to time and its random actions."""
+
+
+def run_games_bench(
+    games: dict[str, GameMaker],
+    players: Sequence[int] = (11,),
+    batch: Sequence[int] = (256,),
+    steps: int = 100,
+    repeats: int = 5,
+    as_json: bool = False,
+    print_fn: Callable[[str], None] = print,
+) -> list[GameBenchResult]:
+    """Time ``games`` side by side in scan mode at each team size and batch: every game is
+    compiled first, then the repeats run in turns (game 1, game 2, ..., game 1, ...), and each
+    median is compared with the first game's."""
+    results: list[GameBenchResult] = []
+    for n in players:
+        for b in batch:
+            runs: dict[str, Callable[[], jax.Array]] = {}
+            compile_s: dict[str, float] = {}
+            times: dict[str, list[float]] = {name: [] for name in games}
+            cpu: dict[str, list[float]] = {name: [] for name in games}
+            for name, make in games.items():
+                runs[name] = _game_run(*make(n), b, steps)
+                start = time.perf_counter()
+                jax.block_until_ready(runs[name]())
+                compile_s[name] = time.perf_counter() - start
+            for _ in range(repeats):
+                for name, run in runs.items():
+                    start, start_cpu = time.perf_counter(), time.process_time()
+                    jax.block_until_ready(run())
+                    times[name].append(time.perf_counter() - start)
+                    cpu[name].append(time.process_time() - start_cpu)
+            rates = {name: b * steps / statistics.median(times[name]) for name in games}
+            cpu_rates = {name: b * steps / statistics.median(cpu[name]) for name in games}
+            first = rates[next(iter(games))]
+            cpu_first = cpu_rates[next(iter(games))]
+            for name in games:
+                result = GameBenchResult(
+                    game=name, players=n, batch=b, steps_per_s=rates[name],
+                    steps_per_cpu_s=cpu_rates[name], compile_s=compile_s[name],
+                    repeats=repeats, backend=jax.default_backend(),
+                    ratio_to_first=rates[name] / first,
+                    cpu_ratio_to_first=cpu_rates[name] / cpu_first,
+                )
+                results.append(result)
+                print_fn(json.dumps(asdict(result)) if as_json else (
+                    f"{n:>2}v{n:<2} {name:<10} batch {b:>6}: {result.steps_per_s:>10,.0f} "
+                    f"steps/s = {result.ratio_to_first:.2f}x {next(iter(games))}; "
+                    f"{result.steps_per_cpu_s:>10,.0f} steps/CPU s = "
+                    f"{result.cpu_ratio_to_first:.2f}x (compile {result.compile_s:.1f} s)"
+                ))
+    return results
+
+
+def _game_run(
+    env: Any, params: EnvParams, sample: ActionSampler, batch: int, steps: int
+) -> Callable[[], jax.Array]:
+    """A call that plays ``steps`` steps of ``batch`` games of ``env`` (carried between calls)."""
+    states = reset_games(env, params, jax.random.key(0), batch)
+    runner = make_scan_runner(env, params, batch, steps, sample)
+    key = jax.random.key(1)
+
+    def run() -> jax.Array:
+        nonlocal states, key
+        key, run_key = jax.random.split(key)
+        states, checksum = runner(states, run_key)
+        return checksum
+
+    return run
 
 
 THESIS_FIGURE_6_1: dict[str, dict[int, float]] = {

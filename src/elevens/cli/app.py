@@ -10,7 +10,7 @@ import signal
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import tyro
 
@@ -99,6 +99,9 @@ class EnvBenchArgs:
     plot: Path | None = None
     """Also draw the results against players per team, with the thesis' figure 6.1 as
     reference lines (a PNG)."""
+    games: tuple[str, ...] = ()
+    """Instead, time these games (``env.physics`` names, e.g. thesis rcss skills) side by side
+    in scan mode at each --players and --batch (repeats interleaved), each against the first."""
 
 
 def _set_host_devices(count: int) -> None:
@@ -141,6 +144,13 @@ def bench_env(args: EnvBenchArgs) -> None:
     if args.plot is not None:
         check_output_file("--plot", args.plot, PLOT_SUFFIXES)
     _set_host_devices(args.host_devices)
+    if args.games:
+        from elevens.bench.env import run_games_bench
+
+        makers = {name: _bench_game(name) for name in args.games}
+        run_games_bench(makers, players=args.players, batch=args.batch, steps=args.steps,
+                        repeats=args.repeats, as_json=args.json)
+        return
     from elevens.bench.env import run_env_bench
 
     results = run_env_bench(
@@ -151,6 +161,27 @@ def bench_env(args: EnvBenchArgs) -> None:
         from elevens.bench.env import plot_env_bench
 
         print(f"wrote {plot_env_bench(results, args.plot)}", file=sys.stderr)
+
+
+def _bench_game(name: str) -> Any:
+    """``players -> (env, params, sample)`` of the registered game ``name`` (``env.physics``);
+    random actions from the env's ``sample_actions`` when it has one, else uniform."""
+    import elevens.robocup  # noqa: F401 - registers the RoboCup wing's games
+    from elevens.bench.env import uniform_actions
+    from elevens.train.config import GAMES
+
+    if name not in GAMES:
+        raise ValueError(f"--games {name!r} is unknown: known games are {', '.join(sorted(GAMES))}")
+    config = GAMES[name]()
+
+    def make(players: int) -> Any:
+        env = config.make_env(players)
+        own = getattr(env, "sample_actions", None)
+        sample = uniform_actions(players, config.actions) if own is None else (
+            lambda key, batch: own(key, (batch,)))
+        return env, env.default_params(), sample
+
+    return make
 
 
 COMMANDS: Commands = {

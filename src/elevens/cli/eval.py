@@ -66,8 +66,9 @@ class TournamentArgs:
     """Games vmapped together (memory vs speed)."""
     see_period: int = 1
     """Teams of the 12-value RoboCup action (rcss_naive, runs trained with --env.physics
-    rcss) play the simulator with rcssserver's bodies; there, cycles between two sees (1:
-    fresh observations; 3: the server's wide view)."""
+    rcss) play the simulator with rcssserver's bodies, teams of the 4-value skill action
+    (skills_naive, skills_random) its skill game; there, cycles between two sees (1: fresh
+    observations; 3: the server's wide view)."""
     stamina: bool = False
     """Teams of the 12-value RoboCup action: their players tire as in rcssserver."""
     goalie: bool = False
@@ -196,27 +197,36 @@ def _teams_and_env(
     """Load each group of team specs, and the game on the field the checkpoints trained on
     (SPEC.md's when all are handcrafted), with the handcrafted teams told that field. With
     ``see_period`` (the tournament) teams that all give the 12-value action play the simulator
-    with rcssserver's bodies (its field unless the checkpoints trained on another)."""
+    with rcssserver's bodies, and teams that all give the 4-value skill action its skill game
+    (the server's field unless the checkpoints trained on another)."""
     from elevens.robocup.bodies import RcssSoccer
+    from elevens.robocup.skills.game import SkillSoccer
     from elevens.runs.teams import check_team_size, common_field, fit_to_field
 
+    games = {12: ("the 12-value RoboCup action", RcssSoccer),
+             4: ("the 4-value skill action", SkillSoccer)}
     loaded = [_load_teams(group, deterministic) for group in groups]
     every = [team for group in loaded for team in group]
     kinds = {team.actions for team in every}
     if see_period is not None and len(kinds) > 1:
-        twelve = ", ".join(team.name for team in every if team.actions == 12)
-        two = ", ".join(team.name for team in every if team.actions != 12)
-        raise ValueError(
-            f"{twelve} give the 12-value RoboCup action (the simulator with rcssserver's "
-            f"bodies) and {two} the simulator's 2-value one: a tournament plays one game, "
-            "so give teams of one kind"
+        described = {2: "the simulator's 2-value one", **{k: v[0] for k, v in games.items()}}
+        named = " and ".join(
+            f"{', '.join(team.name for team in every if team.actions == kind)}"
+            f"{' give' if index == 0 else ''} {described.get(kind, f'{kind} action values')}"
+            for index, kind in enumerate(sorted(kinds, reverse=True))
         )
-    rcss = see_period is not None and kinds == {12}
+        raise ValueError(
+            f"{named}: a tournament plays one game, so give teams of one kind"
+        )
+    (kind,) = kinds if see_period is not None and len(kinds) == 1 else (2,)
+    other_game = kind in games
     for team in every:
-        check_team_size(team, players, 12 if rcss else 2)
+        check_team_size(team, players, kind if other_game else 2)
     field = common_field(every)
-    if rcss:
-        env = RcssSoccer(players, see_period=see_period or 1, stamina=stamina, goalie=goalie)
+    if other_game:
+        env = games[kind][1](
+            players, see_period=see_period or 1, stamina=stamina, goalie=goalie
+        )
         params = env.default_params(
             **field, **({} if steps is None else {"episode_length": steps})
         )
@@ -335,7 +345,7 @@ def tournament_command(args: TournamentArgs) -> Any:
     if args.randomize is not None and type(env) is not Soccer:
         raise ValueError(
             f"randomize={args.randomize}: held-out randomised games are the simulator's own "
-            "game; teams of the 12-value RoboCup action play another"
+            "game; teams of the 12-value RoboCup action or the skill action play another"
         )
     began = time.perf_counter()
 

@@ -17,7 +17,8 @@
 * :mod:`elevens.robocup.train` / :mod:`elevens.robocup.play` -- PPO training and matches in the
   server (``elevens robocup ...``).
 * :mod:`elevens.robocup.skills` -- a team that decides in librcsc's skills through the skills
-  proxy (``elevens robocup skills-team``).
+  proxy (``elevens robocup skills-team``), and the same decisions as a game of the simulator
+  (:mod:`elevens.robocup.skills.game`, ``elevens train skills-11v11``).
 """
 
 from elevens.robocup.actions import (
@@ -109,5 +110,7 @@ __all__ = [
 ]
 
 from elevens.robocup.sim import register as _register_sim_game  # noqa: E402
+from elevens.robocup.skills.game import register as _register_skills_game  # noqa: E402
 
 _register_sim_game()
+_register_skills_game()

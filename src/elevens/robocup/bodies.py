@@ -651,9 +651,21 @@ class RcssSoccer(Soccer):
         goals, rewards and respawns as in ``Soccer.transition``."""
         self._check_params(params)
         self.check_actions(actions)
-        b = self.body
         flat = applied_actions(actions.reshape(self.num_players, ACTION_SIZE).astype(jnp.float32))
-        command = decode_thesis12(flat)
+        return self.play_commands(key, state, decode_thesis12(flat), params)
+
+    def ball_pushes(
+        self, key: jax.Array, state: State, command: Commands
+    ) -> tuple[jax.Array, jax.Array]:
+        """What pushes the ball beside the kicks: (acceleration f32[2], who bool[2n]). None
+        here (tackles are not modelled); a game above adds its own."""
+        return jnp.zeros(2), jnp.zeros(self.num_players, bool)
+
+    def play_commands(
+        self, key: jax.Array, state: State, command: Commands, params: EnvParams
+    ) -> tuple[State, jax.Array, jax.Array, StepInfo]:
+        """One server cycle of the players' decoded commands (the rest of ``transition``)."""
+        b = self.body
         if self.goalie:
             command = goalie_guard(command, state, params)
         body = state.headings
@@ -691,6 +703,8 @@ class RcssSoccer(Soccer):
             ),
             0.0,
         ).sum(axis=0)
+        pushed, pushes = self.ball_pushes(key, state, command)
+        kick = kick + pushed
         # The kicks' sum pushes the ball; roll_ball then moves it, decays it
         # (params.ball_friction) and scores or bounces it.
         ball_velocity = push(state.ball_velocity, kick, b.ball_accel_max, b.ball_speed_max)
@@ -700,6 +714,7 @@ class RcssSoccer(Soccer):
             ball_velocity = jnp.where(caught, clearance, ball_velocity)
             ball_start = jnp.where(caught, ball_start, state.ball_position)
             kicks = kicks & ~caught
+            pushes = pushes & ~caught
         ball = physics.roll_ball(ball_start, ball_velocity, params)
         positions, velocities, ball_position, ball_velocity = collide(
             positions, velocities, ball.position, ball.velocity, b
@@ -707,7 +722,7 @@ class RcssSoccer(Soccer):
         ball = ball._replace(position=ball_position, velocity=ball_velocity)
         new_state, rewards, done, info = finish_step(
             key, state, positions, headings, velocities, command_summary(command), ball, kicks,
-            jnp.zeros_like(kicks), params,
+            pushes, params,
         )
         if self.see_period > 1:
             new_state = self._held(state, new_state, params)

@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from elevens.robocup.skills.decode import FORMATION, SLIDE, slot_targets
 from elevens.robocup.skills.observe import PLAYERS, Observation, observe
 from elevens.robocup.skills.space import (
     DRIBBLE_DIRECTIONS,
@@ -34,18 +35,12 @@ from elevens.robocup.skills.space import (
     to_player_actions,
 )
 
-__all__ = ["FORMATION", "SHOOT_RANGE", "skills_naive", "skills_naive_decisions", "slot_targets"]
+__all__ = [
+    "FORMATION", "SHOOT_RANGE", "SLIDE", "naive_choices", "skills_naive", "skills_naive_decisions",
+    "slot_targets",
+]
 
 SHOOT_RANGE = 25.0
-#: Slots with the ball at the centre spot, by shirt number (1: goalie); 4-4-2.
-FORMATION = np.array([
-    [-50.0, 0.0],
-    [-30.0, -20.0], [-32.0, -7.0], [-32.0, 7.0], [-30.0, 20.0],
-    [-14.0, -22.0], [-16.0, -7.0], [-16.0, 7.0], [-14.0, 22.0],
-    [-3.0, -9.0], [-3.0, 9.0],
-], np.float32)
-#: How far the slots follow the ball, along x and y.
-SLIDE = np.array([0.6, 0.3], np.float32)
 PASS_MIN, PASS_MAX = 4.0, 35.0
 OPEN_ENOUGH = 3.0  # metres between the passing lane and the nearest opponent
 DRIBBLE_CLEAR = 6.0  # metres of dribble path that must be free of opponents
@@ -55,112 +50,118 @@ _GOAL_YS = np.linspace(-GOAL_HALF_WIDTH + 1.0, GOAL_HALF_WIDTH - 1.0, 5).astype(
 _PLAY_ON, _BEFORE_KICK_OFF, _AFTER_GOAL = 2, 0, 8
 
 
-def slot_targets(unum: np.ndarray, ball: np.ndarray, offside_x: np.ndarray) -> np.ndarray:
-    """Each player's formation slot shifted with the ball, on the pitch and onside."""
-    target = FORMATION[unum - 1] + SLIDE * ball
-    x = np.minimum(target[:, 0], np.maximum(offside_x - 1.0, 0.0))
-    return np.stack([np.clip(x, -48.0, 48.0), np.clip(target[:, 1], -32.0, 32.0)], axis=1)
-
-
-def _segment_gap(a: np.ndarray, b: np.ndarray, p: np.ndarray) -> np.ndarray:
+def _segment_gap(a: Any, b: Any, p: Any, xp: Any = np) -> Any:
     """Distance from points ``p`` [..., k, 2] to segments ``a``-``b`` [..., 2]."""
     ab = (b - a)[..., None, :]
     ap = p - a[..., None, :]
-    t = np.clip((ap * ab).sum(-1) / np.maximum((ab * ab).sum(-1), 1e-6), 0.0, 1.0)
-    return np.linalg.norm(ap - t[..., None] * ab, axis=-1)
+    t = xp.clip((ap * ab).sum(-1) / xp.maximum((ab * ab).sum(-1), 1e-6), 0.0, 1.0)
+    return xp.linalg.norm(ap - t[..., None] * ab, axis=-1)
 
 
-def _shot_points(obs: Observation) -> np.ndarray:
+def _shot_points(obs: Observation, xp: Any = np) -> Any:
     """The goal-mouth point [n, 2] whose shooting line passes farthest (in angle) from the
     opponents between the shooter and the goal."""
-    targets = np.stack([np.full(5, GOAL[0]), _GOAL_YS], axis=1)  # [5, 2]
+    targets = xp.asarray(np.stack([np.full(5, GOAL[0]), _GOAL_YS], axis=1))  # [5, 2]
     to_target = targets[None] - obs.pos[:, None]  # [n, 5, 2]
     to_opp = obs.opps - obs.pos[:, None]  # [n, 11, 2]
-    ang_t = np.arctan2(to_target[..., 1], to_target[..., 0])  # [n, 5]
-    ang_o = np.arctan2(to_opp[..., 1], to_opp[..., 0])  # [n, 11]
-    diff = np.abs((ang_t[:, :, None] - ang_o[:, None, :] + np.pi) % (2 * np.pi) - np.pi)
+    ang_t = xp.arctan2(to_target[..., 1], to_target[..., 0])  # [n, 5]
+    ang_o = xp.arctan2(to_opp[..., 1], to_opp[..., 0])  # [n, 11]
+    diff = xp.abs((ang_t[:, :, None] - ang_o[:, None, :] + np.pi) % (2 * np.pi) - np.pi)
     ahead = obs.opps_valid & (to_opp[..., 0] > -1.0)  # [n, 11]
-    clearance = np.where(ahead[:, None, :], diff, np.pi).min(-1)  # [n, 5]
-    return targets[np.argmax(clearance, axis=1)]
+    clearance = xp.where(ahead[:, None, :], diff, np.pi).min(-1)  # [n, 5]
+    return targets[xp.argmax(clearance, axis=1)]
 
 
-def _best_pass(obs: Observation) -> tuple[np.ndarray, np.ndarray]:
+def _best_pass(obs: Observation, xp: Any = np) -> tuple[Any, Any]:
     """The receiver (shirt number, 0 when none is open) and whether one is."""
     n = len(obs)
     receivers = obs.mates  # [n, 11, 2]
-    dist = np.linalg.norm(receivers - obs.pos[:, None], axis=-1)
+    dist = xp.linalg.norm(receivers - obs.pos[:, None], axis=-1)
     lanes = _segment_gap(
-        np.repeat(obs.pos[:, None], PLAYERS, 1).reshape(-1, 2),
+        xp.repeat(obs.pos[:, None], PLAYERS, 1).reshape(-1, 2),
         receivers.reshape(-1, 2),
-        np.repeat(obs.opps, PLAYERS, 0),
+        xp.repeat(obs.opps, PLAYERS, 0),
+        xp,
     ).reshape(n, PLAYERS, PLAYERS)  # [n, receiver, opponent]
-    gap = np.where(obs.opps_valid[:, None, :], lanes, np.inf).min(-1)  # [n, 11]
-    me = np.arange(1, PLAYERS + 1)[None] == obs.unum[:, None]
+    gap = xp.where(obs.opps_valid[:, None, :], lanes, np.inf).min(-1)  # [n, 11]
+    me = xp.arange(1, PLAYERS + 1)[None] == obs.unum[:, None]
     ok = (
-        obs.mates_valid & ~me & (np.arange(PLAYERS) > 0)[None]  # never back to the goalie
+        obs.mates_valid & ~me & (xp.arange(PLAYERS) > 0)[None]  # never back to the goalie
         & (receivers[..., 0] > obs.pos[:, None, 0])  # forward
-        & (receivers[..., 0] < np.maximum(obs.offside_x, 0.0)[:, None])  # onside
+        & (receivers[..., 0] < xp.maximum(obs.offside_x, 0.0)[:, None])  # onside
         & (dist >= PASS_MIN) & (dist <= PASS_MAX) & (gap >= OPEN_ENOUGH)
     )
-    score = np.where(ok, np.minimum(gap, 10.0) + 0.2 * (receivers[..., 0] - obs.pos[:, None, 0]),
+    score = xp.where(ok, xp.minimum(gap, 10.0) + 0.2 * (receivers[..., 0] - obs.pos[:, None, 0]),
                      -np.inf)
-    best = np.argmax(score, axis=1)
-    return (best + 1).astype(np.int32), ok.any(axis=1)
+    best = xp.argmax(score, axis=1)
+    return (best + 1).astype(xp.int32), ok.any(axis=1)
 
 
-def _dribble(obs: Observation) -> tuple[np.ndarray, np.ndarray]:
+def _dribble(obs: Observation, xp: Any = np) -> tuple[Any, Any]:
     """The dribble direction nearest the goal direction whose first metres are clear, and
     whether any forward one is."""
-    to_goal = GOAL[None] - obs.pos
-    to_goal /= np.maximum(np.linalg.norm(to_goal, axis=1, keepdims=True), 1e-6)
-    align = to_goal @ DRIBBLE_DIRECTIONS.T  # [n, 8]
-    ends = obs.pos[:, None] + DRIBBLE_CLEAR * DRIBBLE_DIRECTIONS[None]  # [n, 8, 2]
+    directions = xp.asarray(DRIBBLE_DIRECTIONS)
+    to_goal = xp.asarray(GOAL)[None] - obs.pos
+    to_goal = to_goal / xp.maximum(xp.linalg.norm(to_goal, axis=1, keepdims=True), 1e-6)
+    align = to_goal @ directions.T  # [n, 8]
+    ends = obs.pos[:, None] + DRIBBLE_CLEAR * directions[None]  # [n, 8, 2]
     n = len(obs)
     lanes = _segment_gap(
-        np.repeat(obs.pos[:, None], 8, 1).reshape(-1, 2), ends.reshape(-1, 2),
-        np.repeat(obs.opps, 8, 0),
+        xp.repeat(obs.pos[:, None], 8, 1).reshape(-1, 2), ends.reshape(-1, 2),
+        xp.repeat(obs.opps, 8, 0), xp,
     ).reshape(n, 8, PLAYERS)
-    blocked = (np.where(obs.opps_valid[:, None, :], lanes, np.inf) < PRESSED).any(-1)
-    forward = DRIBBLE_DIRECTIONS[None, :, 0] > -0.1  # towards their goal or across
+    blocked = (xp.where(obs.opps_valid[:, None, :], lanes, np.inf) < PRESSED).any(-1)
+    forward = directions[None, :, 0] > -0.1  # towards their goal or across
     ok = forward & ~blocked
-    return np.argmax(np.where(ok, align, -np.inf), axis=1).astype(np.int32), np.any(ok, axis=1)
+    return xp.argmax(xp.where(ok, align, -np.inf), axis=1).astype(xp.int32), xp.any(ok, axis=1)
 
 
-def skills_naive_decisions(obs: Observation) -> Decisions:
-    """The yardstick's decisions for every row of ``obs``."""
+def naive_choices(obs: Observation, xp: Any = np) -> tuple[Any, Any, Any]:
+    """The yardstick's decisions for every row of ``obs``, as arrays of ``xp`` (numpy, or
+    jax.numpy under a trace): kind int32 [n], index int32 [n], point f32 [n, 2] (the fields
+    of :class:`Decisions`)."""
     n = len(obs)
-    kind = np.full(n, Kind.GO_TO, np.int32)
-    index = np.zeros(n, np.int32)
-    point = slot_targets(obs.unum, obs.ball, obs.offside_x).astype(np.float32)
+    kind = xp.full(n, Kind.GO_TO, xp.int32)
+    index = xp.zeros(n, xp.int32)
+    point = slot_targets(obs.unum, obs.ball, obs.offside_x, xp).astype(xp.float32)
+
+    def put(mask: Any, value: Any, into: Any) -> Any:
+        return xp.where(mask[:, None] if into.ndim == 2 else mask, value, into)
 
     # Without the ball.
     first = (obs.self_reach <= obs.mate_reach) & ~obs.kickable_mate
-    kind[first] = Kind.INTERCEPT
+    kind = put(first, Kind.INTERCEPT, kind)
     tackle = obs.kickable_opp & ~obs.kickable_mate & (obs.tackle_probability >= TACKLE_PROBABILITY)
-    kind[tackle] = Kind.TACKLE
+    kind = put(tackle, Kind.TACKLE, kind)
 
     # With it.
-    receiver, can_pass = _best_pass(obs)
-    direction, can_dribble = _dribble(obs)
-    shoot = obs.kickable & (np.linalg.norm(GOAL[None] - obs.pos, axis=1) < SHOOT_RANGE)
+    receiver, can_pass = _best_pass(obs, xp)
+    direction, can_dribble = _dribble(obs, xp)
+    shoot = obs.kickable & (xp.linalg.norm(xp.asarray(GOAL)[None] - obs.pos, axis=1) < SHOOT_RANGE)
     passing = obs.kickable & ~shoot & can_pass
     dribble = obs.kickable & ~shoot & ~can_pass & can_dribble
     hold = obs.kickable & ~shoot & ~can_pass & ~can_dribble
-    kind[shoot], point[shoot] = Kind.SHOOT, _shot_points(obs)[shoot]
-    kind[passing], index[passing], point[passing] = Kind.PASS, receiver[passing], 0.0
-    kind[dribble], index[dribble] = Kind.DRIBBLE, direction[dribble]
-    kind[hold] = Kind.HOLD
+    kind, point = put(shoot, Kind.SHOOT, kind), put(shoot, _shot_points(obs, xp), point)
+    kind, index, point = (put(passing, Kind.PASS, kind), put(passing, receiver, index),
+                          put(passing, 0.0, point))
+    kind, index = put(dribble, Kind.DRIBBLE, kind), put(dribble, direction, index)
+    kind = put(hold, Kind.HOLD, kind)
 
     # Outside open play, and the goalie.
     placing = (obs.mode == _BEFORE_KICK_OFF) | (obs.mode == _AFTER_GOAL)
     set_play = ~placing & (obs.mode != _PLAY_ON)
-    kind[set_play] = Kind.SET_PLAY
-    kind[obs.goalie & ~placing] = Kind.GOALIE
-    kind[obs.penalty] = Kind.PENALTY
-    home = FORMATION[obs.unum - 1]
-    kind[placing] = Kind.KICKOFF_MOVE
-    point[placing] = np.stack([np.minimum(home[:, 0], -1.0), home[:, 1]], axis=1)[placing]
-    return Decisions.of(kind, index, point)
+    kind = put(set_play, Kind.SET_PLAY, kind)
+    kind = put(obs.goalie & ~placing, Kind.GOALIE, kind)
+    kind = put(obs.penalty, Kind.PENALTY, kind)
+    home = xp.asarray(FORMATION)[obs.unum - 1]
+    kind = put(placing, Kind.KICKOFF_MOVE, kind)
+    point = put(placing, xp.stack([xp.minimum(home[:, 0], -1.0), home[:, 1]], axis=1), point)
+    return kind.astype(xp.int32), index.astype(xp.int32), point.astype(xp.float32)
+
+
+def skills_naive_decisions(obs: Observation) -> Decisions:
+    """The yardstick's decisions for every row of ``obs``."""
+    return Decisions.of(*naive_choices(obs))
 
 
 def skills_naive(states: Sequence[Any]) -> list[Any]:

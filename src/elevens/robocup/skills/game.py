@@ -1,0 +1,214 @@
+"""The simulator's skill game: every player's action is a skill decision (``decode``: kind,
+pointer, target), carried out by the compiled controllers (``controllers``) over rcssserver's
+bodies (``elevens.robocup.bodies``: kicks within reach, dash inertia, optional stamina and
+goalie routine). The same decisions that the server runtime sends to librcsc's skills, so one
+policy plays both.
+
+``SkillsEnvConfig`` is its game for the core (``env.physics = "skills"``), with the presets
+``skills-2v2`` and ``skills-11v11`` (the simulator's presets on the server's field, the
+4-value action, ``skills_naive`` as the evaluation team) and the handcrafted teams
+``skills_naive`` and ``skills_random`` (``elevens.robocup.skills.team``). The players see all
+around (``fov_half_angle`` pi): librcsc's world model, which the server runtime decides on,
+keeps every player it has seen or heard of.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any, ClassVar
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from elevens.env.params import EnvParams
+from elevens.env.physics import team_signs
+from elevens.env.state import State
+from elevens.robocup.bodies import TACKLE, Commands, RcssSoccer, kickable, rcss_field
+from elevens.robocup.sim import SERVER_FIELD, RcssEnvConfig
+from elevens.robocup.skills import controllers
+from elevens.robocup.skills.decode import (
+    SKILL_ACTION_SIZE,
+    SkillChoice,
+    SkillContext,
+    decode,
+    shirt_numbers,
+)
+from elevens.robocup.skills.team import SkillsNaiveTeam, SkillsRandomTeam, random_actions
+from elevens.teams.registry import register_team
+from elevens.train.config import (
+    EnvConfig,
+    LearnerConfig,
+    TrainConfig,
+    apply_overrides,
+    make_config,
+    register_game,
+    register_preset,
+)
+
+__all__ = ["SkillSoccer", "SkillsEnvConfig", "register", "skills_config", "skills_field"]
+
+
+def skills_field(players_per_team: int = 11, **overrides: Any) -> EnvParams:
+    """The server's field and ball (``rcss_field``), seen all around."""
+    return rcss_field(players_per_team, **{"fov_half_angle": math.pi, **overrides})
+
+
+class SkillSoccer(RcssSoccer):
+    """The skill game: actions ``f32[2, n, 4]`` (team, player, (kind, pointer, x, y); the
+    layout and its fallbacks in ``elevens.robocup.skills.decode``); the rest is
+    ``RcssSoccer``'s, with tackles (``ball_pushes``)."""
+
+    def default_params(self, **overrides: Any) -> EnvParams:
+        return skills_field(self.players_per_team, **overrides)
+
+    def check_actions(self, actions: jax.Array) -> None:
+        """Raise ``ValueError`` unless actions are ``[2, n, 4]`` floats."""
+        expected = (2, self.players_per_team, SKILL_ACTION_SIZE)
+        shape = tuple(getattr(actions, "shape", ()))
+        if shape != expected:
+            raise ValueError(
+                f"actions have shape {shape}, expected {expected} (team, player, (kind 0..7, "
+                f"pointer 0..{2 * self.players_per_team - 1}, x, y))"
+            )
+        if not jnp.issubdtype(actions.dtype, jnp.floating):
+            raise ValueError(f"actions have dtype {actions.dtype}, expected a float dtype")
+
+    def context(self, state: State, params: EnvParams) -> SkillContext:
+        """Every player's decode context, each in its team's frame, from the true state."""
+        n = self.players_per_team
+        sign = jnp.asarray(team_signs(params))[:, None]
+        own = sign * state.positions  # [2n, 2] each in its own team's frame
+        ball = sign * state.ball_position[None, :]
+        opponent_x = jnp.concatenate([  # each player's opponents' x in its team's frame
+            jnp.broadcast_to(state.positions[n:, 0], (n, n)),
+            jnp.broadcast_to(-state.positions[:n, 0], (n, n)),
+        ])
+        offside = controllers.offside_line(
+            opponent_x, jnp.ones((2 * n, n), bool), ball[:, 0], params.half_length
+        )
+        return SkillContext(
+            observer=np.arange(2 * n),  # static: the decode's tables are cut at trace time
+            unum=np.tile(shirt_numbers(n), 2),
+            position=own,
+            ball=ball,
+            offside_x=offside,
+            kickable=kickable(state.positions, state.ball_position[None, :], self.body),
+        )
+
+    def decode(self, state: State, actions: jax.Array, params: EnvParams) -> SkillChoice:
+        """What each player does for ``actions`` f32[2, n, 4] in ``state`` (after the
+        fallbacks), each in its team's frame."""
+        flat = actions.reshape(self.num_players, SKILL_ACTION_SIZE).astype(jnp.float32)
+        return decode(
+            flat, self.context(state, params), self.players_per_team,
+            half=(params.half_length, params.half_width), goal_half_width=params.goal_width / 2,
+            xp=jnp,
+        )
+
+    def transition(
+        self, key: jax.Array, state: State, actions: jax.Array, params: EnvParams
+    ) -> tuple[State, jax.Array, jax.Array, Any]:
+        """One server cycle: each player's skill decoded and its controller's command played."""
+        self._check_params(params)
+        self.check_actions(actions)
+        choice = self.decode(state, actions, params)
+        m = self.num_players
+        body = controllers.Bodies.of(
+            state.positions, state.velocities, state.headings,
+            jnp.broadcast_to(state.ball_position, (m, 2)),
+            jnp.broadcast_to(state.ball_velocity, (m, 2)), self.body,
+        )
+        command = controllers.commands(
+            choice, body, state.positions, jnp.asarray(team_signs(params)), params.half_length,
+            params.ball_friction, self.body,
+        )
+        return self.play_commands(key, state, command, params)
+
+    def ball_pushes(
+        self, key: jax.Array, state: State, command: Commands
+    ) -> tuple[jax.Array, jax.Array]:
+        """Tackles: each succeeds with rcssserver's probability (drawn with the step's key)
+        and pushes the ball towards its direction."""
+        ball = jnp.broadcast_to(state.ball_position, state.positions.shape)
+        chance = controllers.tackle_probability(state.positions, state.headings, ball)
+        draw = jax.random.uniform(jax.random.fold_in(key, 1), (self.num_players,))
+        won = (command.kind == TACKLE) & (draw < chance)
+        push = controllers.tackle_acceleration(
+            command.kick_direction, state.positions, state.headings, ball
+        )
+        return jnp.sum(jnp.where(won[:, None], push, 0.0), axis=0), won
+
+    def sample_actions(self, key: jax.Array, shape: tuple[int, ...] = ()) -> jax.Array:
+        """Uniform random actions f32[*shape, 2, n, 4]: every kind, every slot, every point."""
+        return random_actions(key, (*shape, 2, self.players_per_team))
+
+
+@dataclasses.dataclass(frozen=True)
+class SkillsEnvConfig(RcssEnvConfig):
+    """The skill game (``SkillSoccer``); the fields are ``RcssEnvConfig``'s (give the server's
+    field, seen all around, in ``game``: ``skills_field``)."""
+
+    physics: str = "skills"
+    """The game's bodies and action: "skills", rcssserver's bodies and skill decisions."""
+
+    PHYSICS: ClassVar[str] = "skills"
+
+    def make_env(self, players_per_team: int) -> SkillSoccer:
+        return SkillSoccer(
+            players_per_team, see_period=self.see_period, stamina=self.stamina,
+            goalie=self.goalie,
+        )
+
+    @property
+    def actions(self) -> int:
+        return SKILL_ACTION_SIZE
+
+
+def skills_config(preset: str, **overrides: Any) -> TrainConfig:
+    """The simulator preset ``preset`` in the skill game: the server's field and ball seen all
+    around, the 4-value action, ``skills_naive`` for evaluation and no GIF (its game is
+    against the simulator's teams); ``overrides`` as ``make_config`` takes them; validated."""
+    config = make_config(preset)
+    learner: LearnerConfig = config.learner
+    env = learner.env
+    server = skills_field(env.players_per_team)
+    game = dataclasses.replace(
+        env.game, fov_half_angle=server.fov_half_angle,
+        **{name: getattr(server, name) for name in SERVER_FIELD},
+    )
+    shared = {f.name: getattr(env, f.name) for f in dataclasses.fields(EnvConfig)}
+    config = dataclasses.replace(
+        config,
+        preset=f"skills-{preset}",
+        learner=dataclasses.replace(
+            learner,
+            env=SkillsEnvConfig(**{**shared, "game": game, "physics": SkillsEnvConfig.PHYSICS}),
+            network=dataclasses.replace(learner.network, actions=SKILL_ACTION_SIZE),
+        ),
+        run=dataclasses.replace(
+            config.run, eval_teams=("skills_naive",), write_gif=False,
+            run_dir=f"runs/skills-{preset}",
+        ),
+    )
+    return apply_overrides(config, overrides).validate()
+
+
+def register() -> None:
+    """Make the skill game, its presets and teams known to the core (idempotent)."""
+    register_game(SkillsEnvConfig)
+    register_team("skills_naive", SkillsNaiveTeam())
+    register_team("skills_random", SkillsRandomTeam())
+    for preset in ("2v2", "11v11"):
+        register_preset(
+            f"skills-{preset}",
+            _preset_factory(preset),
+            f"The {preset} preset in the simulator's skill game: rcssserver's bodies, field "
+            "and ball, and a skill decision (kind, pointer, target) per player, as the skills "
+            "runtime plays the server.",
+        )
+
+
+def _preset_factory(preset: str) -> Any:
+    return lambda: skills_config(preset)

@@ -1,0 +1,223 @@
+"""Handcrafted teams of the simulator's skill game (``elevens.robocup.skills.game``).
+
+- ``skills_naive``: the yardstick of the server runtime (``elevens.robocup.skills.naive``)
+  unchanged in its decisions: its decision logic (``naive_choices``) runs under jnp on the
+  arrays the runtime reads from librcsc's world model, here rebuilt from the player's
+  observation (:func:`skill_observation`), and its decisions are encoded in the 4-value action
+  (``decode.encode``). Outside open play there is nothing to decide in the simulator (no
+  set plays, no goalie kind): player 0 (shirt 1) plays as a field player at its slot unless
+  the game's goalie routine plays it.
+- ``skills_random``: a uniformly random kind, pointer and target for every player.
+
+Both are pure ``TeamPolicy``s of 4-value actions (team frame, one game; vmap for batches).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from elevens.env.state import ENTITY_FEATURES, SELF_FEATURES, Observation
+from elevens.robocup.bodies import DEFAULT, rcss_field
+from elevens.robocup.skills import controllers
+from elevens.robocup.skills.decode import (
+    OPEN_KINDS,
+    SKILL_ACTION_SIZE,
+    SkillContext,
+    encode,
+    shirt_numbers,
+)
+from elevens.robocup.skills.naive import naive_choices
+from elevens.robocup.skills.observe import PLAYERS
+from elevens.robocup.skills.observe import Observation as SkillObservation
+from elevens.robocup.skills.space import Kind
+from elevens.teams.scripted import Field
+
+__all__ = ["SkillsNaiveTeam", "SkillsRandomTeam", "random_actions", "skill_observation"]
+
+SKILLS_FIELD = Field.of(rcss_field())
+_S = {name: i for i, name in enumerate(SELF_FEATURES)}
+_E = {name: i for i, name in enumerate(ENTITY_FEATURES)}
+_PLAY_ON = 2
+
+
+def _slot_tables(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """(mate_slot int[n, n], opp_slot int[n]): observer k's entity slot of its teammate p (its
+    own row: -1) and of opponent q (``entity_layout``'s order)."""
+    mate = np.full((n, n), -1, np.int64)
+    for k in range(n):
+        for p in range(n):
+            if p != k:
+                mate[k, p] = p if p < k else p - 1
+    return mate, np.arange(n) + n - 1
+
+
+def skill_observation(obs: Observation, field: Field,
+                      params: Any = DEFAULT) -> tuple[SkillObservation, jax.Array]:
+    """One team's Observation [n] (team frame) -> the arrays the skills runtime reads from
+    librcsc's world model (``elevens.robocup.skills.observe.Observation``, jnp, shirt-number
+    slots), and each player's heading (radians, team frame). A ball that a player does not
+    see is placed where its teammates see it."""
+    n = obs.self_features.shape[0]
+    f = obs.self_features
+    extent = jnp.array([field.half_length, field.half_width])
+    pos = jnp.stack([f[:, _S["x"]], f[:, _S["y"]]], axis=-1) * extent
+    heading = jnp.arctan2(f[:, _S["sin_heading"]], f[:, _S["cos_heading"]])
+    e = obs.entities
+    distance = e[..., _E["distance"]] * (2.0 * field.half_length)
+    bearing = heading[:, None] + jnp.arctan2(e[..., _E["sin_bearing"]], e[..., _E["cos_bearing"]])
+    where = pos[:, None, :] + distance[..., None] * jnp.stack(
+        [jnp.cos(bearing), jnp.sin(bearing)], axis=-1)  # [n, 2n, 2]
+    forward = jnp.stack([jnp.cos(heading), jnp.sin(heading)], axis=-1)[:, None, :]
+    left = jnp.stack([-forward[..., 1], forward[..., 0]], axis=-1)
+    velocity = e[..., _E["vel_forward"], None] * forward + e[..., _E["vel_left"], None] * left
+    other_heading = heading[:, None] + jnp.arctan2(e[..., _E["sin_rel_heading"]],
+                                                   e[..., _E["cos_rel_heading"]])
+    seen = obs.entity_mask
+
+    sees_ball = seen[:, -1]
+    count = jnp.sum(sees_ball)
+
+    def shared(value: jax.Array) -> jax.Array:
+        total = jnp.sum(jnp.where(sees_ball[:, None], value, 0.0), axis=0)
+        return jnp.where(sees_ball[:, None], value, total / jnp.maximum(count, 1))
+
+    ball, ball_velocity = shared(where[:, -1]), shared(velocity[:, -1])
+
+    mate_slot, opp_slot = _slot_tables(n)
+    own = jnp.arange(n)[:, None] == jnp.arange(n)[None, :]
+    safe = np.maximum(mate_slot, 0)
+    mates = jnp.where(own[..., None], pos[:, None, :], where[jnp.arange(n)[:, None], safe])
+    mates_valid = own | seen[jnp.arange(n)[:, None], safe]
+    mates_heading = jnp.where(own, heading[:, None], other_heading[jnp.arange(n)[:, None], safe])
+    opps, opps_valid = where[:, opp_slot], seen[:, opp_slot]
+    opps_heading = other_heading[:, opp_slot]
+
+    shirts = shirt_numbers(n) - 1
+
+    def by_shirt(values: jax.Array, fill: Any = 0.0) -> jax.Array:
+        out = jnp.full((n, PLAYERS, *values.shape[2:]), fill, values.dtype)
+        return out.at[:, shirts].set(values)
+
+    def near(xy: jax.Array) -> jax.Array:  # [n, k, 2] -> bool[n, k]: the ball in its reach
+        return jnp.sqrt(jnp.sum((xy - ball[:, None, :]) ** 2, axis=-1)) <= params.kickable_distance
+
+    kickable = jnp.sqrt(jnp.sum((ball - pos) ** 2, axis=-1)) <= params.kickable_distance
+    kickable_mate = jnp.any(near(mates) & mates_valid & ~own, axis=1)
+    kickable_opp = jnp.any(near(opps) & opps_valid, axis=1)
+
+    def steps(xy: jax.Array, head: jax.Array) -> jax.Array:  # [n, k, 2] -> [n, k]
+        k = xy.shape[1]
+        cycles, _ = controllers.reach_steps(
+            xy.reshape(-1, 2), head.reshape(-1), jnp.repeat(ball, k, axis=0),
+            jnp.repeat(ball_velocity, k, axis=0), field.ball_friction, params,
+        )
+        return cycles.reshape(n, k)
+
+    never = controllers.HORIZON + 1
+    mate_steps = jnp.where(mates_valid, steps(mates, mates_heading), never)
+    opp_steps = jnp.where(opps_valid, steps(opps, opps_heading), never)
+    offside = controllers.offside_line(opps[..., 0], opps_valid, ball[:, 0], field.half_length)
+    zeros = jnp.zeros(n)
+    fields: dict[str, Any] = dict(
+        unum=shirt_numbers(n),  # static
+        goalie=jnp.zeros(n, bool),
+        kickable=kickable,
+        pos=pos,
+        vel=jnp.zeros((n, 2)),
+        body=jnp.degrees(heading),
+        stamina=zeros,
+        tackle_probability=controllers.tackle_probability(pos, heading, ball),
+        ball=ball,
+        ball_vel=ball_velocity,
+        ball_pos_count=jnp.zeros(n, jnp.int32),
+        mates=by_shirt(mates),
+        mates_valid=by_shirt(mates_valid, False),
+        opps=by_shirt(opps),
+        opps_valid=by_shirt(opps_valid, False),
+        opp_goalie=jnp.ones(n, jnp.int32),
+        self_reach=jnp.diagonal(mate_steps),
+        mate_reach=jnp.min(jnp.where(own, never, mate_steps), axis=1),
+        opp_reach=jnp.min(opp_steps, axis=1),
+        kickable_mate=kickable_mate,
+        kickable_opp=kickable_opp,
+        offside_x=offside,
+        mode=jnp.full(n, _PLAY_ON, jnp.int32),
+        our_set_play=jnp.zeros(n, bool),
+        penalty=jnp.zeros(n, bool),
+        cycle=jnp.zeros(n, jnp.int32),
+        stopped=jnp.zeros(n, jnp.int32),
+        need_preprocess=jnp.zeros(n, bool),
+    )
+    return SkillObservation(**fields), heading
+
+
+@dataclasses.dataclass(frozen=True)
+class SkillsNaiveTeam:
+    """``skills_naive`` in the simulator's skill game (module docstring)."""
+
+    name: str = "skills_naive"
+    field: Field = SKILLS_FIELD
+    actions: int = SKILL_ACTION_SIZE
+
+    def on_field(self, field: Field) -> SkillsNaiveTeam:
+        return dataclasses.replace(self, field=field)
+
+    def init_carry(self, players_per_team: int) -> Any:
+        return ()
+
+    def act(self, params: Any, carry: Any, obs: Observation,
+            key: jax.Array) -> tuple[Any, jax.Array]:
+        """obs: one team's Observation [n] -> ((), actions f32[n, 4])."""
+        return carry, self.play(obs)
+
+    def play(self, obs: Observation) -> jax.Array:
+        n = obs.self_features.shape[0]
+        view, _ = skill_observation(obs, self.field)
+        kind, index, point = naive_choices(view, jnp)
+        # Only the open-play kinds exist here (the mode is always play on, nobody is the
+        # goalie kind); anything else would hold the slot.
+        kind = jnp.where(kind < OPEN_KINDS, kind, Kind.GO_TO)
+        player_of_shirt = np.full(PLAYERS + 1, -1, np.int32)
+        player_of_shirt[shirt_numbers(n)] = np.arange(n)
+        mate = jnp.asarray(player_of_shirt)[jnp.clip(index, 0, PLAYERS)]
+        target = jnp.where(kind == Kind.PASS, mate, jnp.where(kind == Kind.MARK, n + mate, -1))
+        context = SkillContext(
+            observer=np.arange(n), unum=view.unum, position=view.pos, ball=view.ball,
+            offside_x=view.offside_x, kickable=view.kickable,
+        )
+        return encode(
+            kind, target, jnp.where(kind == Kind.DRIBBLE, index, 0), point, context, n,
+            half=(self.field.half_length, self.field.half_width),
+            goal_half_width=self.field.goal_half_width, xp=jnp,
+        )
+
+
+@dataclasses.dataclass(frozen=True)
+class SkillsRandomTeam:
+    """Uniformly random skill actions: every kind, slot and target alike."""
+
+    name: str = "skills_random"
+    actions: int = SKILL_ACTION_SIZE
+
+    def init_carry(self, players_per_team: int) -> Any:
+        return ()
+
+    def act(self, params: Any, carry: Any, obs: Observation,
+            key: jax.Array) -> tuple[Any, jax.Array]:
+        return carry, random_actions(key, (obs.self_features.shape[0],))
+
+
+def random_actions(key: jax.Array, shape: tuple[int, ...]) -> jax.Array:
+    """Uniform skill actions f32[*shape, 4] for players of a team of ``shape[-1]``: every kind,
+    every slot of its observation, every point; one draw (each draw is a loop of its own on
+    a CPU)."""
+    n = shape[-1]
+    u = jax.random.uniform(key, (*shape, SKILL_ACTION_SIZE))
+    kind = jnp.minimum(jnp.floor(u[..., 0] * OPEN_KINDS), OPEN_KINDS - 1)
+    pointer = jnp.minimum(jnp.floor(u[..., 1] * 2 * n), 2 * n - 1)
+    return jnp.concatenate([kind[..., None], pointer[..., None], 2.0 * u[..., 2:] - 1.0], axis=-1)

@@ -35,9 +35,17 @@ _OWNS_CACHE = _CACHE_VARIABLE not in os.environ
 if _OWNS_CACHE:
     os.environ[_CACHE_VARIABLE] = tempfile.mkdtemp(prefix="elevens-test-compiles-")
 _COMPILE_CACHE = os.environ[_CACHE_VARIABLE]
-jax.config.update("jax_compilation_cache_dir", _COMPILE_CACHE)
-jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.1)
-jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+_CACHE_SETTINGS = {
+    "jax_compilation_cache_dir": _COMPILE_CACHE,
+    "jax_persistent_cache_min_compile_time_secs": 0.1,
+    "jax_persistent_cache_min_entry_size_bytes": 0,
+}
+for _name, _value in _CACHE_SETTINGS.items():
+    jax.config.update(_name, _value)
+    # The same settings for the Python subprocesses a test starts (`python -m elevens ...`,
+    # the parallel worker): jax reads them from the environment, so a subprocess loads what the
+    # session already compiled (and its repeats load its own) instead of compiling again.
+    os.environ[_name.upper()] = str(_value)
 
 
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:

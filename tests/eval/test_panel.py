@@ -43,22 +43,26 @@ def test_play_panel_plays_each_opponent_on_its_own_key() -> None:
 
 
 def test_tournament_panel_reports_mean_and_worst_and_writes_files(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch,
 ) -> None:
+    # The command reads the registry's panel: two of its teams (a compile each) show that it
+    # plays them in order and sums them up. Every panel team's own play is tests/teams'.
+    panel = PANEL[:2]
+    monkeypatch.setattr("elevens.teams.registry.PANEL", panel)
     out = tmp_path / "panel"
     (result,) = eval_main(["tournament", "naive", "--panel", "--games", "2", "--players",
                            "1", "--steps", "30", "--out", str(out)])
     printed = capsys.readouterr().out
     saved = json.loads((out / "panel.json").read_text())
     (entry,) = saved["teams"]
-    assert [o["opponent"] for o in entry["opponents"]] == list(PANEL)
+    assert [o["opponent"] for o in entry["opponents"]] == list(panel)
     means = np.array([o["mean"] for o in entry["opponents"]])
     assert entry["mean"] == pytest.approx(means.mean()) == pytest.approx(result.mean)
     assert entry["worst"]["mean"] == pytest.approx(means.min())
     assert f"naive: mean {entry['mean']:.3f} over the panel" in printed
     with (out / "panel.csv").open() as handle:
         rows = list(csv.DictReader(handle))
-    assert [row["opponent"] for row in rows] == list(PANEL)
+    assert [row["opponent"] for row in rows] == list(panel)
 
 
 @pytest.mark.parametrize(

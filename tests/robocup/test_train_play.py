@@ -8,6 +8,7 @@ at the end use a real rcssserver when there is one.
 from __future__ import annotations
 
 import csv
+import functools
 import json
 import os
 import re
@@ -37,9 +38,18 @@ from elevens.runs.errors import RunRefusedError
 from elevens.runs.layout import EPISODES_CSV
 from elevens.runs.logging import read_metrics_csv
 from elevens.train.checkpoint import Checkpointer
-from elevens.train.config import make_config
+from elevens.train.config import NetworkConfig, make_config
 from elevens.train.learner import make_learner
 from tests.robocup.conftest import needs_rcssserver, wait_stopped
+
+
+@functools.cache
+def _sim_game(players_per_team: int) -> tuple[Soccer, Any, Any, Any, Any]:
+    """The simulator and its jitted reset, step and global state, shared by every SimEnv of a
+    size (a fresh jit of each for every game would trace them again)."""
+    env = Soccer(players_per_team)
+    return (env, env.default_params(), jax.jit(env.reset), jax.jit(env.step),
+            jax.jit(env.global_state))
 
 
 class SimEnv:
@@ -48,12 +58,8 @@ class SimEnv:
 
     def __init__(self, players_per_team: int, restart_at: int | None = None) -> None:
         self.players_per_team = players_per_team
-        self.env = Soccer(players_per_team)
-        self.params = self.env.default_params()
         self.restart_at = restart_at
-        self._reset = jax.jit(self.env.reset)
-        self._step = jax.jit(self.env.step)
-        self._global = jax.jit(self.env.global_state)
+        self.env, self.params, self._reset, self._step, self._global = _sim_game(players_per_team)
         self.key = jax.random.key(0)
         self.steps = 0
         self.closed = False
@@ -103,13 +109,22 @@ class SimEnv:
         self.closed = True
 
 
+SMALL_NETWORKS = {"network.features": 16, "network.num_heads": 2, "network.lstm_features": 8,
+                  "network.lstm_layers": 1}
+"""The loop's tests train small networks (shorter compiles): none of them depends on the size."""
+DEFAULT_NETWORKS = {
+    f"network.{name}": getattr(NetworkConfig(), name)
+    for name in ("features", "num_heads", "lstm_features", "lstm_layers")
+}
+
+
 def small_config(tmp_path: Path, **overrides: Any) -> RoboCupTrainConfig:
     players = overrides.pop("env.players_per_team", 1)
     values: dict[str, Any] = {
         "env.players_per_team": players, "ppo.minibatch_size": players,
         "games_per_iteration": 2, "env.episode_length": 12, "run.iterations": 2,
         "run.max_minutes": 0.0, "run.run_dir": str(tmp_path / "run"),
-        "run.checkpoint_every": 1, "server.threads": False,
+        "run.checkpoint_every": 1, "server.threads": False, **SMALL_NETWORKS,
     }
     values.update(overrides)
     return make_robocup_config(**values)
@@ -300,10 +315,11 @@ def test_a_12_value_policy_learns_in_the_server_loop(tmp_path: Path) -> None:
         envs.append(KickScoreEnv(1))
         return envs[-1]
 
+    # The default networks: the run this learning check was tuned with.
     config = small_config(
         tmp_path, **{"network.actions": 12, "games_per_iteration": 8, "run.iterations": 12,
                      "ppo.learning_rate": 3e-3, "env.ball_shaping_weight": 0.0,
-                     "env.approach_shaping_weight": 0.0}
+                     "env.approach_shaping_weight": 0.0, **DEFAULT_NETWORKS}
     )
     result = train_robocup(config, env_factory=factory, progress=False)
     assert result.iteration == 12
@@ -552,18 +568,14 @@ def test_init_from_a_checkpoint_starts_from_its_networks_and_resumes_with_them(
 ) -> None:
     from elevens.runs.teams import load_learner_params
 
-    # A source with a non-default network, written by hand (an init, no training).
-    source_config = make_config(
-        "2v2",
-        **{"env.players_per_team": 1, "network.features": 16,
-           "network.num_heads": 2, "network.lstm_features": 8},
-    )
+    # A source with other networks than small_config's, written by hand (an init, no training).
+    networks = {**SMALL_NETWORKS, "network.features": 24}
+    source_config = make_config("2v2", **{"env.players_per_team": 1, **networks})
     source_state = make_learner(source_config.learner).init(jax.random.key(3))
     with Checkpointer(tmp_path / "source" / "checkpoints") as checkpointer:
         checkpointer.save(0, source_state, source_config.to_dict(), {"iteration": 0})
     # Its networks must be this run's: a clear refusal names the flags to pass.
-    networks = {"network.features": 16, "network.num_heads": 2, "network.lstm_features": 8}
-    with pytest.raises(RunRefusedError, match="other networks.*--network.features 16"):
+    with pytest.raises(RunRefusedError, match="other networks.*--network.features 24"):
         train_robocup(small_config(tmp_path, **{"run.init_from": str(tmp_path / "source")}),
                       env_factory=lambda i: SimEnv(1), progress=False)
     # No time to play: the run saves its starting point, which must be the source's networks.
@@ -586,7 +598,7 @@ def test_init_from_a_checkpoint_starts_from_its_networks_and_resumes_with_them(
     )
     assert resumed.iteration == 0 and not resumed.interrupted
     saved = json.loads((tmp_path / "run" / "config.json").read_text())
-    assert saved["learner"]["network"]["features"] == 16
+    assert saved["learner"]["network"]["features"] == 24
     assert saved["learner"]["network"]["lstm_features"] == 8
 
 

@@ -15,6 +15,7 @@ from typing import Any
 
 import pytest
 
+from elevens.cli import main
 from elevens.runs.errors import RunRefusedError
 from elevens.runs.lock import lock_run_directory
 from elevens.runs.loop import train
@@ -79,18 +80,18 @@ def test_a_held_run_directory_is_refused_naming_the_holder_and_freed_by_kill_9(
 
 
 def test_a_second_train_command_exits_2_with_one_line_naming_the_holder(
-    held: tuple[Path, subprocess.Popen[str]],
+    held: tuple[Path, subprocess.Popen[str]], monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
 ) -> None:
     run_dir, process = held
-    finished = subprocess.run(
-        [sys.executable, "-m", "elevens", "train", "quickstart", "--run.run-dir", str(run_dir),
-         "--no-progress"],
-        capture_output=True, text=True, env=ENV, timeout=WAIT_S,
-    )
-    assert finished.returncode == 2
-    lines = finished.stderr.splitlines()
-    assert len(lines) == 1 and f"(process {process.pid})" in lines[0], finished.stderr
-    assert "compiling" not in finished.stdout  # refused before the learner was built
+    _no_compile(monkeypatch)  # refused before the learner was built
+    with pytest.raises(SystemExit) as exit_info:
+        main(["train", "quickstart", "--run.run-dir", str(run_dir), "--no-progress"])
+    assert exit_info.value.code == 2
+    printed = capsys.readouterr()
+    lines = printed.err.splitlines()
+    assert len(lines) == 1 and f"(process {process.pid})" in lines[0], printed.err
+    assert "compiling" not in printed.out
 
 
 def test_train_and_resume_refuse_a_held_directory_before_building_the_learner(

@@ -295,6 +295,8 @@ def test_the_presets_make_the_skill_game() -> None:
     config = skills_config("2v2")
     env = config.learner.env
     assert (env.physics, env.actions, config.learner.network.actions) == ("skills", 4, 4)
+    # The policy's head matches the decision: a kind of the 8 open-play kinds, a pointer, a target.
+    assert (config.learner.network.head, config.learner.network.kinds) == ("parametrised", 8)
     assert env.game.field_length == 105.0 and env.game.fov_half_angle == pytest.approx(np.pi)
     assert config.run.eval_teams == ("skills_naive",)
     assert isinstance(env.make_env(2), SkillSoccer)

@@ -29,6 +29,7 @@ from elevens.robocup.bodies import TACKLE, Commands, RcssSoccer, kickable, rcss_
 from elevens.robocup.sim import SERVER_FIELD, RcssEnvConfig
 from elevens.robocup.skills import controllers
 from elevens.robocup.skills.decode import (
+    OPEN_KINDS,
     SKILL_ACTION_SIZE,
     SkillChoice,
     SkillContext,
@@ -185,7 +186,11 @@ def skills_config(preset: str, **overrides: Any) -> TrainConfig:
         learner=dataclasses.replace(
             learner,
             env=SkillsEnvConfig(**{**shared, "game": game, "physics": SkillsEnvConfig.PHYSICS}),
-            network=dataclasses.replace(learner.network, actions=SKILL_ACTION_SIZE),
+            # The head that matches the decision: a kind, a pointer by attention, a target.
+            network=dataclasses.replace(
+                learner.network, actions=SKILL_ACTION_SIZE, head="parametrised",
+                kinds=OPEN_KINDS,
+            ),
         ),
         run=dataclasses.replace(
             config.run, eval_teams=("skills_naive",), write_gif=False,

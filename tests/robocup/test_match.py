@@ -24,6 +24,7 @@ from elevens.robocup.match import (
     ElevensTeam,
     ExternalTeam,
     MatchResult,
+    SkillsTeam,
     parse_team,
     play_match,
     play_matches,
@@ -33,6 +34,7 @@ from elevens.robocup.match import (
 )
 from elevens.robocup.server import ServerAddress, ServerProcess
 from elevens.robocup.team import RoboCupTeam, TeamResult
+from tests.refusal import refused
 from tests.robocup.conftest import needs_rcssserver
 from tests.robocup.test_client import FakeServer
 
@@ -319,6 +321,35 @@ def test_parse_team_takes_exactly_one_of_a_spec_and_a_command() -> None:
     assert command[command.index("--view") + 1] == "narrow"
     with pytest.raises(ValueError, match="team 'x': view width 'huge' must be one of"):
         parse_team("naive", None, "x", view="huge")
+
+
+def test_a_skills_team_runs_as_elevens_robocup_skills_team() -> None:
+    team = parse_team("skills_naive", None, "skills")
+    assert team == SkillsTeam("skills_naive", "skills")
+    command = team.command("127.0.0.1", 6100, 7, synch=True)
+    assert command[1:5] == ["-m", "elevens", "robocup", "skills-team"]
+    assert command[command.index("--skills") + 1] == "skills_naive"
+    assert command[command.index("--port") + 1] == "6100"
+    assert command[command.index("--players") + 1] == "7" and "--json" in command
+    assert "--proxy" not in command
+    given = SkillsTeam("skills_naive", "skills", proxy="/opt/proxy")
+    assert given.command("h", 1, 11, synch=False)[-2:] == ["--proxy", "/opt/proxy"]
+
+
+def test_match_refuses_a_skills_team_without_the_proxy_in_one_line(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before any server starts: the line says where it looked and how to build the proxy."""
+    monkeypatch.setenv("ELEVENS_SKILLS_PROXY", str(tmp_path))
+    server = tmp_path / "rcssserver"  # never started: the refusal comes first
+    server.write_text("#!/bin/sh\nexit 1\n")
+    server.chmod(0o755)
+    error = refused(
+        ["robocup", "match", "--team0", "skills_naive", "--team1", "naive", "--team1-name",
+         "other", "--rcssserver", str(server)],
+        "robocup match", capsys,
+    )
+    assert str(tmp_path) in error and "soccer-simulation-proxy" in error
 
 
 def test_match_cli_gives_each_elevens_side_its_own_flags() -> None:

@@ -200,6 +200,27 @@ def test_real_time_requests_spread_over_a_cycle_make_one_batch() -> None:
     assert len(answers) == 11 and decide.batches == [list(range(1, 12))]
 
 
+def test_a_proxy_that_resets_its_connection_is_not_an_error(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """A proxy process ending mid-call resets its socket: the connection closes quietly and
+    the others play on."""
+    import socket
+    import struct
+
+    with DecisionServer(skills_naive) as server:
+        team = FakeTeam(server.port, players=2)
+        sock = socket.create_connection(("127.0.0.1", server.port))
+        sock.sendall(b"\x80\x01")  # the start of a call, then a reset (linger 0)
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+        sock.close()
+        time.sleep(0.2)
+        answers, _ = team.cycle(Scene(ball=(0.0, 0.0), cycle=1))
+        team.close()
+        assert len(answers) == 2
+    assert not [r for r in caplog.records if r.levelname == "ERROR"]
+
+
 def test_constructor_refuses_a_gather_time_past_the_deadline() -> None:
     with pytest.raises(ValueError, match=r"gather_s 0.05 and deadline_s 0.04"):
         DecisionServer(skills_naive, deadline_s=0.04, gather_s=0.05)

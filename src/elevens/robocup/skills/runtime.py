@@ -248,8 +248,8 @@ class DecisionServer:
                     elapsed = time.perf_counter() - client.first_read
                     with self._lock:
                         self._roundtrip.append(elapsed)
-        except TTransportException:
-            pass  # the proxy went away
+        except (TTransportException, ConnectionError):
+            pass  # the proxy went away (closed, or reset as its process ended)
         except Exception:  # one bad connection must not take the team down
             _log.exception("a proxy connection failed")
         finally:

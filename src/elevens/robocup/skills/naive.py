@@ -9,6 +9,8 @@ In open play (vectorised over every deciding player, one call a cycle):
   when every forward path is blocked by an opponent at arm's length, it holds;
 - otherwise the player who reaches the ball first by librcsc's intercept table intercepts,
   unless a teammate already has it; one with a good chance tackles an opponent who has it;
+  while they have the ball, the nearest other outfield player (two, when the interceptor is
+  not the nearest) stands :data:`COVER_DISTANCE` goal-side of it;
 - everyone else goes to a formation slot that slides with the ball (kept onside).
 
 Before a kick-off the players move to their slots in their own half. The goalie plays the
@@ -51,6 +53,8 @@ OPEN_ENOUGH = 3.0  # metres between the passing lane and the nearest opponent
 DRIBBLE_CLEAR = 6.0  # metres of dribble path that must be free of opponents
 PRESSED = 2.5  # an opponent this close blocks every dribble: hold
 TACKLE_PROBABILITY = 0.7
+COVER_DISTANCE = 3.0  # metres from the ball towards our goal, while they have it
+_OUR_GOAL = np.array([-52.5, 0.0], np.float32)
 _GOAL_YS = np.linspace(-GOAL_HALF_WIDTH + 1.0, GOAL_HALF_WIDTH - 1.0, 5).astype(np.float32)
 _PLAY_ON, _BEFORE_KICK_OFF, _AFTER_GOAL = 2, 0, 8
 
@@ -138,6 +142,16 @@ def skills_naive_decisions(obs: Observation) -> Decisions:
     kind[first] = Kind.INTERCEPT
     tackle = obs.kickable_opp & ~obs.kickable_mate & (obs.tackle_probability >= TACKLE_PROBABILITY)
     kind[tackle] = Kind.TACKLE
+    theirs = ~obs.kickable_mate & (
+        obs.kickable_opp | (obs.opp_reach < np.minimum(obs.self_reach, obs.mate_reach))
+    )
+    others = obs.mates_valid & (np.arange(PLAYERS) > 0)[None]  # outfield teammates, me too
+    ball_dist = np.linalg.norm(obs.mates - obs.ball[:, None], axis=-1)
+    rank = (others & (ball_dist < np.linalg.norm(obs.pos - obs.ball, axis=1)[:, None])).sum(1)
+    cover = theirs & ~first & ~tackle & (rank <= 1)
+    goalward = _OUR_GOAL[None] - obs.ball
+    goalward /= np.maximum(np.linalg.norm(goalward, axis=1, keepdims=True), 1e-6)
+    point[cover] = (obs.ball + COVER_DISTANCE * goalward)[cover]
 
     # With it.
     receiver, can_pass = _best_pass(obs)

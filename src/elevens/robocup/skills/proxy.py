@@ -36,8 +36,9 @@ ENV_VAR = "ELEVENS_SKILLS_PROXY"
 #: The proxy's binaries beside the project (the repository's parent folder).
 BESIDE = Path(__file__).resolve().parents[4].parent / "ext/soccer-simulation-proxy/build/bin"
 BUILD_HINT = (
-    "build CLSFramework/soccer-simulation-proxy with Thrift only (docs/robocup_skills.md) and "
-    f"set {ENV_VAR} to its folder holding start.sh and sample_player"
+    "build CLSFramework/soccer-simulation-proxy with Thrift only in "
+    "../ext/soccer-simulation-proxy beside the project (docs/guide.md, RoboCup) or set "
+    f"{ENV_VAR} to its folder holding start.sh and sample_player"
 )
 
 

@@ -24,6 +24,7 @@ from elevens.robocup.match import (
     ElevensTeam,
     ExternalTeam,
     MatchResult,
+    SkillsTeam,
     parse_team,
     play_match,
     play_matches,
@@ -32,11 +33,22 @@ from elevens.robocup.match import (
     t_quantile_975,
 )
 from elevens.robocup.server import ServerAddress, ServerProcess
+from elevens.robocup.skills.proxy import BUILD_HINT, ProxyNotFound, find_proxy
 from elevens.robocup.team import RoboCupTeam, TeamResult
+from tests.refusal import refused
 from tests.robocup.conftest import needs_rcssserver
 from tests.robocup.test_client import FakeServer
 
 FAKE_TEAM = Path(__file__).with_name("fake_team.py")
+
+
+def _proxy_built() -> bool:
+    try:
+        find_proxy()
+    except ProxyNotFound:
+        return False
+    return True
+
 HELIOS = os.environ.get("ELEVENS_HELIOS_START", "")
 needs_helios = pytest.mark.skipif(
     not (HELIOS and Path(HELIOS).is_file() and (os.environ.get("ELEVENS_RCSSSERVER") or
@@ -47,6 +59,11 @@ needs_helios = pytest.mark.skipif(
         "the repository, then set ELEVENS_HELIOS_START=/path/to/helios-base/build/bin/start.sh "
         "(and install rcssserver); see docs/results/robocup.md"
     ),
+)
+
+needs_proxy = pytest.mark.skipif(
+    not _proxy_built(),
+    reason=f"the skills proxy is not built: {BUILD_HINT}",
 )
 
 
@@ -321,6 +338,35 @@ def test_parse_team_takes_exactly_one_of_a_spec_and_a_command() -> None:
         parse_team("naive", None, "x", view="huge")
 
 
+def test_a_skills_team_runs_as_elevens_robocup_skills_team() -> None:
+    team = parse_team("skills_naive", None, "skills")
+    assert team == SkillsTeam("skills_naive", "skills")
+    command = team.command("127.0.0.1", 6100, 7, synch=True)
+    assert command[1:5] == ["-m", "elevens", "robocup", "skills-team"]
+    assert command[command.index("--skills") + 1] == "skills_naive"
+    assert command[command.index("--port") + 1] == "6100"
+    assert command[command.index("--players") + 1] == "7" and "--json" in command
+    assert "--proxy" not in command
+    given = SkillsTeam("skills_naive", "skills", proxy="/opt/proxy")
+    assert given.command("h", 1, 11, synch=False)[-2:] == ["--proxy", "/opt/proxy"]
+
+
+def test_match_refuses_a_skills_team_without_the_proxy_in_one_line(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before any server starts: the line says where it looked and how to build the proxy."""
+    monkeypatch.setenv("ELEVENS_SKILLS_PROXY", str(tmp_path))
+    server = tmp_path / "rcssserver"  # never started: the refusal comes first
+    server.write_text("#!/bin/sh\nexit 1\n")
+    server.chmod(0o755)
+    error = refused(
+        ["robocup", "match", "--team0", "skills_naive", "--team1", "naive", "--team1-name",
+         "other", "--rcssserver", str(server)],
+        "robocup match", capsys,
+    )
+    assert str(tmp_path) in error and "soccer-simulation-proxy" in error
+
+
 def test_match_cli_gives_each_elevens_side_its_own_flags() -> None:
     from elevens.cli.robocup import RoboCupMatchArgs, match_teams
 
@@ -510,6 +556,23 @@ def test_real_server_clock_and_team_stay_in_lockstep_despite_a_slow_first_call(
     assert len(calls) > 1  # the slow call, then the match's (not one of them missed a cycle)
     assert result.ended == "time_over" and result.server_time == 60 and result.missed == 0
     assert "missed a cycle" not in log
+
+
+@needs_rcssserver
+@needs_proxy
+def test_skills_naive_plays_a_short_match_through_the_proxy(tmp_path: Path) -> None:
+    """The proxy's eleven players, started by ``elevens robocup skills-team``, ask the
+    decision server every cycle of a synch-mode match: every cycle played, the round trips
+    in the team's report."""
+    result = play_match(SkillsTeam("skills_naive", "skills"), _fake_team(), half_time=3,
+                        log_dir=tmp_path)
+    assert result.names == ("skills", "fake") and result.lost_cycles == 0
+    report = result.teams[0]
+    assert report is not None and report["ended"] == "players left"
+    stats = report["stats"]
+    assert stats["errors"] == 0 and stats["requests"] >= 11 * 60  # 60 cycles, 11 players
+    assert 0.0 < stats["roundtrip_ms_p50"] <= stats["roundtrip_ms_p99"]
+    assert stats["requests"] / stats["batches"] > 1.0  # batched, not one call per player
 
 
 @needs_helios

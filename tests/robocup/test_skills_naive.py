@@ -114,3 +114,25 @@ def test_observation_slots_by_shirt_number() -> None:
     assert list(obs.unum) == [1, 7] and list(obs.goalie) == [True, False]
     assert obs.mates_valid.all() and obs.opps_valid.all()
     assert np.allclose(obs.mates[1], OURS) and np.allclose(obs.opps[0], THEIRS)
+
+
+def test_while_they_have_the_ball_the_next_nearest_covers_goal_side() -> None:
+    ours, theirs = OURS.copy(), THEIRS.copy()
+    ours[7] = (-17.0, -5.0)  # player 8 is nearest the ball, player 7 next
+    theirs[9] = (-20.0, 0.0)
+    held = Scene(ours=ours, theirs=theirs, ball=(-20.5, 0.0), kickable_opponent=True)
+    _, dec = _decide(held, 3, 7, 8)
+    assert list(dec.kind) == [Kind.GO_TO, Kind.GO_TO, Kind.INTERCEPT]
+    assert dec.point[1] == pytest.approx((-23.5, 0.0))  # 3 m towards our goal
+    assert dec.point[0, 0] < -25.0  # player 3 keeps its slot
+    theirs[9] = THEIRS[9]  # a loose ball nobody of theirs reaches first: no cover
+    _, loose = _decide(Scene(ours=ours, theirs=theirs, ball=(-20.5, 0.0)), 7)
+    assert loose.point[0, 0] < -25.0
+
+
+def test_runs_to_a_point_are_paced_by_stamina() -> None:
+    obs, _ = _decide(Scene(ball=(-20.0, 0.0)), 3, 4, 5)
+    obs = dataclasses.replace(obs, stamina=np.array([8000.0, 4000.0, 2500.0], np.float32))
+    dec = Decisions.of(np.full(3, Kind.GO_TO), point=np.zeros((3, 2), np.float32))
+    powers = [a.actions[0].body_go_to_point.max_dash_power for a in to_player_actions(dec, obs)]
+    assert powers == pytest.approx([100.0, 65.0, 30.0])

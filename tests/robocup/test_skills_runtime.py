@@ -107,14 +107,19 @@ def test_on_a_loose_ball_the_first_to_reach_it_intercepts(served: Any) -> None:
 
 def test_one_batched_decision_per_cycle_with_latency_recorded(served: Any) -> None:
     server, decide, team = served
+    client_trips: list[float] = []
     for cycle in range(1, 11):
         answers, trips = team.cycle(Scene(ball=(cycle - 5.0, 0.0), cycle=cycle))
         assert len(answers) == 11 and len(trips) == 11
+        client_trips += trips
     assert decide.batches == [list(range(1, 12))] * 10
     stats = server.stats()
     assert (stats.requests, stats.batches, stats.defaults, stats.errors) == (110, 10, 0, 0)
     assert stats.mean_batch == 11.0 and stats.connected_players == 11
     assert 0.0 < stats.latency_ms_p50 <= stats.latency_ms_p99 <= stats.latency_ms_max
+    # The server's round trip holds the decoded request's wait and sits inside the client's.
+    assert stats.latency_ms_p50 <= stats.roundtrip_ms_p50 <= stats.roundtrip_ms_p99
+    assert stats.roundtrip_ms_max <= max(client_trips) * 1e3
 
 
 def test_a_player_that_does_not_ask_delays_the_batch_only_by_the_gather_time() -> None:
@@ -195,6 +200,27 @@ def test_real_time_requests_spread_over_a_cycle_make_one_batch() -> None:
     assert len(answers) == 11 and decide.batches == [list(range(1, 12))]
 
 
+def test_a_proxy_that_resets_its_connection_is_not_an_error(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """A proxy process ending mid-call resets its socket: the connection closes quietly and
+    the others play on."""
+    import socket
+    import struct
+
+    with DecisionServer(skills_naive) as server:
+        team = FakeTeam(server.port, players=2)
+        sock = socket.create_connection(("127.0.0.1", server.port))
+        sock.sendall(b"\x80\x01")  # the start of a call, then a reset (linger 0)
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+        sock.close()
+        time.sleep(0.2)
+        answers, _ = team.cycle(Scene(ball=(0.0, 0.0), cycle=1))
+        team.close()
+        assert len(answers) == 2
+    assert not [r for r in caplog.records if r.levelname == "ERROR"]
+
+
 def test_constructor_refuses_a_gather_time_past_the_deadline() -> None:
     with pytest.raises(ValueError, match=r"gather_s 0.05 and deadline_s 0.04"):
         DecisionServer(skills_naive, deadline_s=0.04, gather_s=0.05)
@@ -255,4 +281,5 @@ def test_the_command_plays_the_team_and_prints_its_report(tmp_path: Path) -> Non
     assert args[:6] == ["-h", "127.0.0.1", "-p", "6200", "-P", "6202"]
     assert args[args.index("-t") + 1] == "skills" and "-C" in args
     assert args[args.index("--rpc-type") + 1] == "thrift"
+    assert args[args.index("-n") + 1] == "11"  # every player of the team starts
     assert '"requests": 55' in (folder / "out").read_text()  # the fake team's own count

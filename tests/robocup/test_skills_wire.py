@@ -66,6 +66,7 @@ def test_a_changed_field_is_reported(tmp_path: Path) -> None:
         text.replace("29: double stamina,", "29: i32 stamina,")
         .replace("struct Empty {}", "struct Empty {\n  7: bool extra\n}")
         .replace("service Game {", "service Game {\n  Empty Unknown(1: Empty e),")
+        .replace("PlayOn = 2,", "PlayOn = 3,")
     )
     assert edited != text
     path = tmp_path / "edited_thrift.thrift"
@@ -76,6 +77,7 @@ def test_a_changed_field_is_reported(tmp_path: Path) -> None:
     assert "Self.stamina: ours is 29: i32 stamina, the proxy's is 29: double stamina" in joined
     assert "Empty.extra: id 7 not in the proxy's definition" in joined
     assert "Game.Unknown: not in the proxy's service" in joined
+    assert "enum GameModeType.PlayOn: ours is = 3, the proxy's is = 2" in joined
     assert wire.spec_mismatches(wire.protocol(), wire.protocol()) == []
 
 

@@ -96,8 +96,9 @@ class RoboCupMatchArgs:
     difference with a 95% interval."""
 
     team0: str | None = "naive"
-    """Left team: naive, random, a shipped trained team or a checkpoint path (or use
-    --team0-cmd)."""
+    """Left team: naive, random, a shipped trained team, a checkpoint path or a skills team
+    (skills_naive: elevens decides, the skills proxy's players execute; docs/robocup_skills.md)
+    (or use --team0-cmd)."""
     team1: str | None = None
     """Right team, as --team0 (or use --team1-cmd)."""
     team0_cmd: str | None = None
@@ -312,12 +313,15 @@ def match(args: RoboCupMatchArgs) -> None:
             raise ValueError(f"--half-time {args.half_time!r} is invalid: it must be >= 1")
     except ValueError as error:
         exit_with_error("elevens robocup match: error", error, 2)
-    from elevens.robocup.match import ElevensTeam
+    from elevens.robocup.match import ElevensTeam, SkillsTeam
     from elevens.robocup.play import load_robocup_team
+    from elevens.robocup.skills.proxy import find_proxy
 
     for side in (team0, team1):
         if isinstance(side, ElevensTeam):  # a bad spec fails here, not in a child process
             load_robocup_team(side.spec, "sim", any_action=True)
+        elif isinstance(side, SkillsTeam):  # so does a missing proxy (one line: how to build)
+            find_proxy(side.proxy)
     results = play_matches(
         team0, team1, matches=args.matches, players_per_team=args.players,
         synch=not args.real_time, half_time=args.half_time, log_dir=args.log_dir,

@@ -65,7 +65,8 @@ def skills_team(args: RoboCupSkillsTeamArgs) -> None:
         print(
             f"{args.team_name} ({args.skills}, {result.ended}): {s['requests']} requests in "
             f"{s['batches']} batches, {s['defaults']} defaults; latency p50 "
-            f"{s['latency_ms_p50']:.1f} ms, p99 {s['latency_ms_p99']:.1f} ms"
+            f"{s['latency_ms_p50']:.1f} ms, p99 {s['latency_ms_p99']:.1f} ms; round trip p50 "
+            f"{s['roundtrip_ms_p50']:.1f} ms, p99 {s['roundtrip_ms_p99']:.1f} ms"
         )
 
 

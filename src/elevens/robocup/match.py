@@ -42,6 +42,7 @@ __all__ = [
     "ElevensTeam",
     "ExternalTeam",
     "MatchResult",
+    "SkillsTeam",
     "played_cycles",
     "t_quantile_975",
     "MatchSummary",
@@ -98,6 +99,26 @@ class ElevensTeam:
 
 
 @dataclasses.dataclass(frozen=True)
+class SkillsTeam:
+    """A skills team (``spec``: a name of ``elevens.robocup.skills.SKILLS``), run as ``elevens
+    robocup skills-team``: elevens' decision server and the proxy's players, which it starts
+    (``proxy``: their folder; None: where ``skills-team`` looks by default)."""
+
+    spec: str
+    name: str = "elevens"
+    proxy: str | None = None
+
+    def command(self, host: str, port: int, players: int, synch: bool) -> list[str]:
+        # The decision server batches by arrival: synch mode and real time need no flag.
+        args = [
+            sys.executable, "-m", "elevens", "robocup", "skills-team", "--skills", self.spec,
+            "--host", host, "--port", str(port), "--team-name", self.name,
+            "--players", str(players), "--json",
+        ]
+        return args + ([] if self.proxy is None else ["--proxy", self.proxy])
+
+
+@dataclasses.dataclass(frozen=True)
 class ExternalTeam:
     """Another team's binaries: a shell command started in its own process group, with
     ``{host}``, ``{port}`` (players), ``{coach_port}`` (online coach) and ``{team}`` replaced
@@ -110,7 +131,9 @@ class ExternalTeam:
         return self.cmd
 
 
-Team = ElevensTeam | ExternalTeam
+Team = ElevensTeam | SkillsTeam | ExternalTeam
+#: The teams run by an elevens command: one that exits before the game ends has failed.
+_OURS = (ElevensTeam, SkillsTeam)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -287,7 +310,7 @@ def play_match(
             procs.append(start_team(command, address, team.name, output))
             wait_connected(
                 log_path, team.name, players_per_team, procs[-1], output, connect_timeout_s,
-                exit_is_error=isinstance(team, ElevensTeam),
+                exit_is_error=isinstance(team, _OURS),
             )
         deadline = time.monotonic() + match_timeout_s
         while server.alive and time.monotonic() < deadline:
@@ -305,7 +328,7 @@ def play_match(
             with contextlib.suppress(subprocess.TimeoutExpired):
                 proc.wait(10.0)
         for team, proc in zip((team0, team1), procs, strict=True):
-            if isinstance(team, ElevensTeam) and proc.returncode not in (0, None):
+            if isinstance(team, _OURS) and proc.returncode not in (0, None):
                 tail = read_text(work / f"{team.name}.log")[-2000:]
                 raise RuntimeError(
                     f"team {team.name!r} failed during the match (status {proc.returncode}):"
@@ -359,6 +382,20 @@ def _team_report(path: Path) -> dict[str, Any] | None:
     return None
 
 
+def _decision_times(result: MatchResult) -> str:
+    """A skills team's decision round trips (its report's stats), as text for the match's
+    line ("" for the other teams)."""
+    text = ""
+    for name, report in zip(result.names, result.teams, strict=True):
+        stats = (report or {}).get("stats")
+        if isinstance(stats, dict) and "roundtrip_ms_p99" in stats:
+            text += (
+                f"; {name} decisions: round trip p50 {stats['roundtrip_ms_p50']:.1f} ms, "
+                f"p99 {stats['roundtrip_ms_p99']:.1f} ms, {stats['defaults']} defaults"
+            )
+    return text
+
+
 def play_matches(
     team0: Team,
     team1: Team,
@@ -386,7 +423,7 @@ def play_matches(
         print_fn(
             f"match {m}: {result.names[0]} {result.score[0]} - {result.score[1]} "
             f"{result.names[1]} ({result.wall_s:.0f} s, {played} cycles, lost {lost}, "
-            f"missed cycles {result.missed_cycles})"
+            f"missed cycles {result.missed_cycles}{_decision_times(result)})"
         )
         if results_path is not None:
             with open(results_path, "a") as f:
@@ -413,6 +450,10 @@ def parse_team(
             raise ValueError("the team's start command is empty")
         return ExternalTeam(cmd, name)
     assert spec is not None
+    from elevens.robocup.skills import SKILLS
+
+    if spec in SKILLS:
+        return SkillsTeam(spec, name)
     try:
         ChangeView(view)
     except ValueError as error:

@@ -9,6 +9,8 @@ In open play (vectorised over every deciding player, one call a cycle):
   when every forward path is blocked by an opponent at arm's length, it holds;
 - otherwise the player who reaches the ball first by librcsc's intercept table intercepts,
   unless a teammate already has it; one with a good chance tackles an opponent who has it;
+  while they have the ball, the nearest other outfield player (two, when the interceptor is
+  not the nearest) stands :data:`COVER_DISTANCE` goal-side of it;
 - everyone else goes to a formation slot that slides with the ball (kept onside).
 
 Before a kick-off the players move to their slots in their own half. The goalie plays the
@@ -46,6 +48,8 @@ OPEN_ENOUGH = 3.0  # metres between the passing lane and the nearest opponent
 DRIBBLE_CLEAR = 6.0  # metres of dribble path that must be free of opponents
 PRESSED = 2.5  # an opponent this close blocks every dribble: hold
 TACKLE_PROBABILITY = 0.7
+COVER_DISTANCE = 3.0  # metres from the ball towards our goal, while they have it
+_OUR_GOAL = np.array([-52.5, 0.0], np.float32)
 _GOAL_YS = np.linspace(-GOAL_HALF_WIDTH + 1.0, GOAL_HALF_WIDTH - 1.0, 5).astype(np.float32)
 _PLAY_ON, _BEFORE_KICK_OFF, _AFTER_GOAL = 2, 0, 8
 
@@ -133,6 +137,18 @@ def naive_choices(obs: Observation, xp: Any = np) -> tuple[Any, Any, Any]:
     kind = put(first, Kind.INTERCEPT, kind)
     tackle = obs.kickable_opp & ~obs.kickable_mate & (obs.tackle_probability >= TACKLE_PROBABILITY)
     kind = put(tackle, Kind.TACKLE, kind)
+    # While they have the ball, the one or two outfield players nearest it (after the
+    # interceptor) stand between it and our goal.
+    theirs = ~obs.kickable_mate & (
+        obs.kickable_opp | (obs.opp_reach < xp.minimum(obs.self_reach, obs.mate_reach))
+    )
+    others = obs.mates_valid & (xp.arange(PLAYERS) > 0)[None]  # outfield teammates, me too
+    ball_dist = xp.linalg.norm(obs.mates - obs.ball[:, None], axis=-1)
+    rank = (others & (ball_dist < xp.linalg.norm(obs.pos - obs.ball, axis=1)[:, None])).sum(1)
+    cover = theirs & ~first & ~tackle & (rank <= 1)
+    goalward = xp.asarray(_OUR_GOAL)[None] - obs.ball
+    goalward = goalward / xp.maximum(xp.linalg.norm(goalward, axis=1, keepdims=True), 1e-6)
+    point = put(cover, obs.ball + COVER_DISTANCE * goalward, point)
 
     # With it.
     receiver, can_pass = _best_pass(obs, xp)

@@ -36,8 +36,9 @@ ENV_VAR = "ELEVENS_SKILLS_PROXY"
 #: The proxy's binaries beside the project (the repository's parent folder).
 BESIDE = Path(__file__).resolve().parents[4].parent / "ext/soccer-simulation-proxy/build/bin"
 BUILD_HINT = (
-    "build CLSFramework/soccer-simulation-proxy with Thrift only (docs/robocup_skills.md) and "
-    f"set {ENV_VAR} to its folder holding start.sh and sample_player"
+    "build CLSFramework/soccer-simulation-proxy with Thrift only in "
+    "../ext/soccer-simulation-proxy beside the project (docs/guide.md, RoboCup) or set "
+    f"{ENV_VAR} to its folder holding start.sh and sample_player"
 )
 
 
@@ -56,12 +57,13 @@ def find_proxy(folder: str | os.PathLike[str] | None = None) -> Path:
 
 
 def proxy_command(folder: Path, rpc_port: int, *, coach: bool = False,
-                  rpc_host: str = "127.0.0.1") -> str:
+                  rpc_host: str = "127.0.0.1", players: int = 11) -> str:
     """The team's start command, with ``{host}``, ``{port}``, ``{coach_port}`` and
-    ``{team}`` left for :func:`elevens.robocup.external.start_team`."""
+    ``{team}`` left for :func:`elevens.robocup.external.start_team`; ``players``: how many
+    start (the goalie first)."""
     cmd = (
         f"cd {folder} && ./start.sh -h {{host}} -p {{port}} -P {{coach_port}} -t {{team}} "
-        f"--rpc-host {rpc_host} --rpc-port {rpc_port} --rpc-type thrift"
+        f"-n {players} --rpc-host {rpc_host} --rpc-port {rpc_port} --rpc-type thrift"
     )
     return cmd if coach else cmd + " -C"
 
@@ -114,7 +116,8 @@ def play_skills_team(
                         gather_s=gather_s) as server:
         if on_start is not None:
             on_start(server)
-        proc = start_team(proxy_command(folder, server.port, coach=coach), address, team, output)
+        command = proxy_command(folder, server.port, coach=coach, players=players)
+        proc = start_team(command, address, team, output)
         ended = "players left"
         try:
             if server_log is not None:

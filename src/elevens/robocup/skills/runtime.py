@@ -11,8 +11,10 @@ proxy stalls without an answer: it has no timeout of its own); the late decision
 dropped. Works the same in synch mode and in real time: batches are formed by arrival, and a
 cycle is only used to know when everyone has asked.
 
-``DecisionServer.stats()`` reports the requests, the batches, the defaults sent and the
-latency from a decoded request to its answer (p50, p99, max).
+``DecisionServer.stats()`` reports the requests, the batches, the defaults sent, the latency
+from a decoded request to its answer (p50, p99, max) and the round trip the proxy waits for:
+from the request's first bytes on the socket to its answer written back (decoding, the wait
+for the batch, the decision and encoding; p50, p99, max).
 """
 
 from __future__ import annotations
@@ -52,6 +54,9 @@ class RuntimeStats:
     latency_ms_p50: float
     latency_ms_p99: float
     latency_ms_max: float
+    roundtrip_ms_p50: float
+    roundtrip_ms_p99: float
+    roundtrip_ms_max: float
     decide_ms_p50: float
     decide_ms_p99: float
     connected_players: int
@@ -74,12 +79,26 @@ class _Request:
         self.done = threading.Event()
 
 
+class _TimedSocket(TSocket):
+    """A socket that notes when the first bytes of a call arrive: a blocking ``recv``
+    returns as they do."""
+
+    first_read: float | None = None
+
+    def read(self, sz: int) -> bytes:
+        data: bytes = super().read(sz)
+        if self.first_read is None:
+            self.first_read = time.perf_counter()
+        return data
+
+
 class _Connection:
     """The handler of one proxy's connection (the Thrift service's methods)."""
 
     def __init__(self, server: DecisionServer) -> None:
         self.server = server
         self.kind: int | None = None
+        self.asked = False  # the call being served is a GetPlayerActions
 
     def Register(self, request: Any) -> Any:  # noqa: N802 - the protocol's method names
         m = protocol()
@@ -107,6 +126,7 @@ class _Connection:
         return protocol().Empty()
 
     def GetPlayerActions(self, state: Any) -> Any:  # noqa: N802
+        self.asked = True
         return self.server._ask(state)
 
     def GetCoachActions(self, _: Any) -> Any:  # noqa: N802
@@ -160,6 +180,7 @@ class DecisionServer:
         self._threads: list[threading.Thread] = []
         self._socks: set[socket.socket] = set()
         self._latency: list[float] = []
+        self._roundtrip: list[float] = []
         self._decide_s: list[float] = []
         self._batches = 0
         self._batch_sizes = 0
@@ -212,7 +233,7 @@ class DecisionServer:
             t.start()
 
     def _serve(self, sock: socket.socket) -> None:
-        client = TSocket()
+        client = _TimedSocket()
         client.set_handle(sock)
         trans = transport_factory().get_transport(client)
         prot = protocol_factory().get_protocol(trans)
@@ -220,9 +241,15 @@ class DecisionServer:
         processor = TProcessor(protocol().Game, connection)
         try:
             while not self._closed:
-                processor.process(prot, prot)
-        except TTransportException:
-            pass  # the proxy went away
+                client.first_read, connection.asked = None, False
+                processor.process(prot, prot)  # reads a call, answers it, flushes
+                # A call already buffered by the previous read has no arrival time: skipped.
+                if connection.asked and client.first_read is not None:
+                    elapsed = time.perf_counter() - client.first_read
+                    with self._lock:
+                        self._roundtrip.append(elapsed)
+        except (TTransportException, ConnectionError):
+            pass  # the proxy went away (closed, or reset as its process ended)
         except Exception:  # one bad connection must not take the team down
             _log.exception("a proxy connection failed")
         finally:
@@ -322,6 +349,7 @@ class DecisionServer:
     def stats(self) -> RuntimeStats:
         with self._lock:
             lat = np.asarray(self._latency) * 1e3
+            trip = np.asarray(self._roundtrip) * 1e3
             dec = np.asarray(self._decide_s) * 1e3
             requests, batches = len(self._latency), self._batches
 
@@ -334,6 +362,8 @@ class DecisionServer:
                 mean_batch=self._batch_sizes / batches if batches else 0.0,
                 latency_ms_p50=pct(lat, 50), latency_ms_p99=pct(lat, 99),
                 latency_ms_max=float(lat.max()) if lat.size else float("nan"),
+                roundtrip_ms_p50=pct(trip, 50), roundtrip_ms_p99=pct(trip, 99),
+                roundtrip_ms_max=float(trip.max()) if trip.size else float("nan"),
                 decide_ms_p50=pct(dec, 50), decide_ms_p99=pct(dec, 99),
                 connected_players=self._connected[0],
             )

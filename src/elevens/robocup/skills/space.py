@@ -40,6 +40,7 @@ __all__ = [
     "Decisions",
     "Kind",
     "default_actions",
+    "paced_dash",
     "pass_speed",
     "to_player_actions",
 ]
@@ -75,6 +76,12 @@ BALL_DECAY = 0.94  # rcssserver's ball_decay
 BALL_SPEED_MAX = 3.0
 MARK_DISTANCE = 1.5  # metres goal-side of the marked opponent
 MAX_DASH = 100.0
+#: Pacing of the runs to a point: full power while stamina (rcssserver's stamina_max 8000)
+#: is above STAMINA_FULL, down to PACED_DASH at STAMINA_LOW, a little above the 2400 below
+#: which the server cuts recovery and effort for good. Unpaced players were spent within a
+#: third of a match against helios-base.
+STAMINA_FULL, STAMINA_LOW = 5000.0, 3000.0
+PACED_DASH = 30.0  # below the ~45 a player recovers a cycle: a spent player recovers
 
 
 @dataclasses.dataclass(frozen=True)
@@ -119,6 +126,12 @@ class Decisions:
             raise ValueError("decisions with a non-finite point (allowed: finite metres)")
 
 
+def paced_dash(stamina: Any) -> np.ndarray:
+    """The dash power of a run to a point for a player with ``stamina``."""
+    share = np.clip((np.asarray(stamina) - STAMINA_LOW) / (STAMINA_FULL - STAMINA_LOW), 0.0, 1.0)
+    return PACED_DASH + (MAX_DASH - PACED_DASH) * share
+
+
 def pass_speed(distance: Any, arrival: float = 1.5) -> np.ndarray:
     """First ball speed so that the ball still moves at about ``arrival`` m/s after
     ``distance`` metres (a decaying ball loses ``1 - decay`` of its speed per metre
@@ -158,9 +171,9 @@ def _turn_to_ball(m: Any) -> Any:
     return m.PlayerAction(body_turn_to_ball=m.Body_TurnToBall(cycle=1))
 
 
-def _go_to(m: Any, target: np.ndarray, threshold: float = 1.0) -> Any:
+def _go_to(m: Any, target: np.ndarray, power: float, threshold: float = 1.0) -> Any:
     return m.PlayerAction(body_go_to_point=m.Body_GoToPoint(
-        target_point=_v(m, target), distance_threshold=threshold, max_dash_power=MAX_DASH
+        target_point=_v(m, target), distance_threshold=threshold, max_dash_power=power
     ))
 
 
@@ -188,12 +201,13 @@ def _one(m: Any, obs: Observation, dec: Decisions, i: int) -> list[Any]:
     if kind == Kind.INTERCEPT:
         return [_intercept(m), _turn_to_ball(m), _neck(m)]
     if kind == Kind.GO_TO:
-        return [_go_to(m, point), _turn_to_ball(m), _neck(m)]
+        return [_go_to(m, point, float(paced_dash(obs.stamina[i]))), _turn_to_ball(m), _neck(m)]
     if kind == Kind.MARK:
         opp = obs.opps[i, index - 1]
         side = np.asarray(_OUR_GOAL, np.float32) - opp
         target = opp + MARK_DISTANCE * side / max(float(np.linalg.norm(side)), 1e-6)
-        return [_go_to(m, target, 0.5), _turn_to_ball(m), _neck(m)]
+        power = float(paced_dash(obs.stamina[i]))
+        return [_go_to(m, target, power, 0.5), _turn_to_ball(m), _neck(m)]
     if kind == Kind.TACKLE:
         tackle = m.Body_TackleToPoint(target_point=_v(m, GOAL), min_probability=0.5,
                                       min_speed=0.0)

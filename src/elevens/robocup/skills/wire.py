@@ -80,10 +80,11 @@ def _fields(struct: Any) -> dict[int, tuple[str, str]]:
 
 
 def spec_mismatches(ours: ModuleType, theirs: ModuleType) -> list[str]:
-    """Every struct, field and service method of ``ours`` that ``theirs`` lacks or declares
-    with another id, name or wire type (an empty list: ours is a subset of theirs). Structs
-    are matched by name, fields by id; a method's arguments and result are compared as
-    structs."""
+    """Every struct, field, enum value and service method of ``ours`` that ``theirs`` lacks or
+    declares with another id, name, wire type or value (an empty list: ours is a subset of
+    theirs). Structs and enums are matched by name, fields by id, enum members by name (an
+    enum is an i32 on the wire: its numbers are the protocol); a method's arguments and result
+    are compared as structs."""
     problems: list[str] = []
     seen: set[str] = set()
 
@@ -108,6 +109,17 @@ def spec_mismatches(ours: ModuleType, theirs: ModuleType) -> list[str]:
     for name, value in sorted(vars(ours).items()):
         if isinstance(value, type) and hasattr(value, "thrift_spec") and name != "Game":
             compare(value, getattr(theirs, name, None), name)
+        elif isinstance(value, type) and hasattr(value, "_NAMES_TO_VALUES"):
+            other = getattr(getattr(theirs, name, None), "_NAMES_TO_VALUES", None)
+            if other is None:
+                problems.append(f"enum {name}: not in the proxy's definition")
+                continue
+            for member, number in sorted(value._NAMES_TO_VALUES.items()):
+                if other.get(member) != number:
+                    found = "absent" if member not in other else f"= {other[member]}"
+                    problems.append(
+                        f"enum {name}.{member}: ours is = {number}, the proxy's is {found}"
+                    )
     ours_service, theirs_service = ours.Game, getattr(theirs, "Game", None)
     for method in ours_service.thrift_services:
         if theirs_service is None or method not in theirs_service.thrift_services:

@@ -355,6 +355,9 @@ def test_skills_naive_beats_random_in_the_skill_game() -> None:
     assert int(result.goals_for.sum()) >= 1.5 * int(result.goals_against.sum())
 
 
+# Slow (~23 s): skills_naive against skills_random in the skill game stays in the default suite
+# (test_skills_naive_beats_random_in_the_skill_game); this adds the CLI's tournament path.
+@pytest.mark.slow
 def test_the_tournament_plays_skill_teams_in_the_skill_game(tmp_path: Any) -> None:
     from elevens.cli.eval import main as eval_main
 

@@ -94,6 +94,9 @@ def test_a_game_of_another_action_count_is_refused(monkeypatch: pytest.MonkeyPat
         team.check_size(2, 2)
 
 
+# Slow (compiles the whole learner, ~37 s): the head's PPO learning stays in the default suite in
+# tests/nets/test_parametrised.py, the mode and sampling of a NetworkTeam too.
+@pytest.mark.slow
 def test_ppo_updates_the_parametrised_policy_and_its_export_plays(tmp_path: Path) -> None:
     """Rollouts of the policy's own samples, reward 1 at every step where it picked kind 1:
     two learner updates (squashed entropy: its noise has the 4 columns of the raw sample)

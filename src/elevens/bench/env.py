@@ -132,15 +132,7 @@ def bench_scan(
         mesh = jax.sharding.Mesh(np.array(available[:devices]), ("games",))
         sharding = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("games"))
         states = jax.device_put(states, sharding)
-    runner = make_scan_runner(env, params, batch, steps)
-    key = jax.random.key(1)
-
-    def run() -> jax.Array:
-        nonlocal states, key
-        key, run_key = jax.random.split(key)
-        states, checksum = runner(states, run_key)
-        return checksum
-
+    run = _carried(make_scan_runner(env, params, batch, steps), states)
     compile_s, times = _timed(run, repeats)
     return EnvBenchResult(
         players=players, batch=batch, mode="scan",
@@ -330,7 +322,12 @@ def _game_run(
 ) -> Callable[[], jax.Array]:
     """A call that plays ``steps`` steps of ``batch`` games of ``env`` (carried between calls)."""
     states = reset_games(env, params, jax.random.key(0), batch)
-    runner = make_scan_runner(env, params, batch, steps, sample)
+    return _carried(make_scan_runner(env, params, batch, steps, sample), states)
+
+
+def _carried(runner: Callable[..., Any], states: Any) -> Callable[[], jax.Array]:
+    """A call of ``runner`` that carries its games' states and a fresh key between calls and
+    returns its checksum."""
     key = jax.random.key(1)
 
     def run() -> jax.Array:

@@ -52,9 +52,11 @@ class RcssEnvConfig(EnvConfig):
     last see, with its clock and last command current; the critic sees the state)."""
 
     PHYSICS: ClassVar[str] = "rcss"
+    BODIES: ClassVar[type[RcssSoccer]] = RcssSoccer
+    """The game class ``make_env`` builds (a game on these bodies names its own)."""
 
     def make_env(self, players_per_team: int) -> RcssSoccer:
-        return RcssSoccer(
+        return self.BODIES(
             players_per_team, see_period=self.see_period, stamina=self.stamina,
             goalie=self.goalie,
         )

@@ -155,12 +155,7 @@ class SkillsEnvConfig(RcssEnvConfig):
     """The game's bodies and action: "skills", rcssserver's bodies and skill decisions."""
 
     PHYSICS: ClassVar[str] = "skills"
-
-    def make_env(self, players_per_team: int) -> SkillSoccer:
-        return SkillSoccer(
-            players_per_team, see_period=self.see_period, stamina=self.stamina,
-            goalie=self.goalie,
-        )
+    BODIES: ClassVar[type[RcssSoccer]] = SkillSoccer
 
     @property
     def actions(self) -> int:

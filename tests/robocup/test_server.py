@@ -264,6 +264,8 @@ def test_servers_stop_when_the_process_that_started_them_is_killed(
     finally:
         starter.kill()
         starter.wait()
+        if starter.stdout is not None:
+            starter.stdout.close()
 
 
 def test_address_is_only_known_after_start(fake_binary: str) -> None:

@@ -623,5 +623,8 @@ def test_sigterm_stops_the_servers_a_command_started(tmp_path: Path) -> None:
         assert wait_stopped(server_pid)
     finally:
         process.kill()
+        process.wait()
+        if process.stdout is not None:
+            process.stdout.close()
 
 

@@ -45,6 +45,13 @@ def _holder(run_dir: Path) -> subprocess.Popen[str]:
     return process
 
 
+def _stop(process: subprocess.Popen[str]) -> None:
+    process.kill()
+    process.wait(WAIT_S)
+    if process.stdout is not None:
+        process.stdout.close()  # an open pipe warns when collected, in whichever test that is
+
+
 @pytest.fixture
 def held(tmp_path: Path) -> Iterator[tuple[Path, subprocess.Popen[str]]]:
     run_dir = tmp_path / "run"
@@ -52,8 +59,7 @@ def held(tmp_path: Path) -> Iterator[tuple[Path, subprocess.Popen[str]]]:
     try:
         yield run_dir, process
     finally:
-        process.kill()
-        process.wait(WAIT_S)
+        _stop(process)
 
 
 def _no_compile(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -118,8 +124,7 @@ def test_robocup_train_refuses_a_held_directory_before_building_the_learner(
         with pytest.raises(RunRefusedError, match=rf"\(process {process.pid}\)"):
             train_robocup(small_config(tmp_path), env_factory=_refuse, progress=False)
     finally:
-        process.kill()
-        process.wait(WAIT_S)
+        _stop(process)
 
 
 def _refuse(*args: Any, **kwargs: Any) -> Any:

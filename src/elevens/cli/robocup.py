@@ -1,4 +1,5 @@
-"""`elevens robocup serve|play|train|bench`: the RoboCup bridge from the command line.
+"""`elevens robocup serve|play|train|bench|match|team|logs`: the RoboCup bridge from the
+command line.
 
 Every command finds rcssserver through ``--rcssserver``, ``$ELEVENS_RCSSSERVER`` or PATH; when
 it is missing it says so and how to install it (``elevens.robocup.server.INSTALL_HINT``).
@@ -388,7 +389,36 @@ def team(args: RoboCupTeamArgs) -> None:
         )
 
 
+@dataclass(frozen=True)
+class RoboCupLogsArgs:
+    """Read rcssserver's game logs (.rcg) and tell one team's matches: the score, who touched
+    the ball, where the scorers won it before each goal it conceded, and when its players'
+    stamina capacity ran out."""
+
+    logs: tyro.conf.Positional[Annotated[tuple[str, ...], tyro.conf.arg(metavar="PATH...")]]
+    """.rcg files, or folders searched through (e.g. a match series' --log-dir)."""
+    team: str | None = None
+    """The team of view, by its name in the server (default: the left team of each log)."""
+    json: bool = False
+    """Print the summary, every conceded goal included, as one JSON object."""
+
+
+def logs(args: RoboCupLogsArgs) -> None:
+    from elevens.robocup.rcg import find_logs, read_rcg, summarize_team
+
+    paths = find_logs(args.logs)
+    games = [read_rcg(path) for path in paths]
+    for game in games:
+        game.side_of(args.team)  # every log has the team, before the summary
+    summary = summarize_team(games, args.team)
+    if args.json:
+        print(json_lib.dumps(summary.as_dict()))
+    else:
+        print("\n".join(summary.lines()))
+
+
 COMMANDS: Commands = {
+    "robocup-logs": (RoboCupLogsArgs, logs),
     "robocup-serve": (RoboCupServeArgs, serve),
     "robocup-play": (RoboCupPlayArgs, play),
     "robocup-train": (RoboCupTrainArgs, train),

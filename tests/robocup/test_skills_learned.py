@@ -31,35 +31,39 @@ from tests.robocup.fake_proxy import FakeTeam, Scene, state
 from tests.robocup.test_match import _fake_team, needs_proxy
 
 
-def _numpy(view: SkillObservation) -> SkillObservation:
-    return SkillObservation(**{k: np.asarray(v) for k, v in vars(view).items()})
-
-
-def _played(players: int, steps: int, **params: Any) -> tuple[Any, Any, Any]:
-    """(env params, state, observation) after ``steps`` random steps of the skill game."""
+def _moving(players: int) -> tuple[Any, Any, Any]:
+    """(env params, state, observation) of a skill game at step 7 with everyone moving, turned
+    any way and having given a command (a reset then drawn velocities and command summaries:
+    no step, whose first calls compile op by op)."""
     env = SkillSoccer(players)
-    p = env.default_params(episode_length=400, **params)
-    current, obs = env.reset(jax.random.key(1), p)
-    for i in range(steps):
-        current, obs, *_ = env.step(jax.random.key(i), current,
-                                    env.sample_actions(jax.random.key(50 + i)), p)
-    return p, current, obs
+    p = env.default_params(episode_length=400)
+    start, _ = env.reset(jax.random.key(1), p)
+    k = jax.random.split(jax.random.key(2), 3)
+    m = 2 * players
+    current = start.replace(
+        velocities=jax.random.uniform(k[0], (m, 2), minval=-0.8, maxval=0.8),
+        headings=jax.random.uniform(k[1], (m,), minval=-np.pi, maxval=np.pi),
+        last_actions=jax.random.uniform(k[2], (m, 2), minval=-1.0, maxval=1.0),
+        ball_velocity=jax.numpy.asarray([1.2, -0.7]), step=jax.numpy.asarray(7),
+    )
+    return p, current, env.observe(current, p)
 
 
 # ------------------------------------------------------------------ the converter
 def test_the_world_models_arrays_give_back_the_skill_games_observation() -> None:
     """skill_observation then sim_observation is the identity on every feature the world
     model has, for both teams (each in its own frame); the rest is what APPROXIMATED says."""
-    params, current, obs = _played(11, 7)
+    params, current, obs = _moving(11)
     approximated_self = [SELF_FEATURES.index(f) for f in APPROXIMATED["self"]]
     approximated_entity = [ENTITY_FEATURES.index(f) for f in APPROXIMATED["entity"]]
     exact_self = [i for i in range(len(SELF_FEATURES)) if i not in approximated_self]
     exact_entity = [i for i in range(len(ENTITY_FEATURES)) if i not in approximated_entity]
+    # One compile for both teams (eagerly, each op of the intercept tables compiles alone).
+    to_arrays = jax.jit(lambda o: vars(skill_observation(o, SKILLS_FIELD)[0]))
     for team in (0, 1):
-        view, _ = skill_observation(obs.team(team), SKILLS_FIELD)
-        arrays = _numpy(view)
+        leaves = {k: np.asarray(v) for k, v in to_arrays(obs.team(team)).items()}
         # The server's cycle stands for the game's step (the time left counts from it).
-        arrays = SkillObservation(**{**vars(arrays), "cycle": np.full(11, int(current.step))})
+        arrays = SkillObservation(**{**leaves, "cycle": np.full(11, int(current.step))})
         back = sim_observation(arrays, episode_length=params.episode_length)
         sim = obs.team(team)
         assert back.self_features.shape == sim.self_features.shape

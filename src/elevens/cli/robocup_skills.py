@@ -16,7 +16,10 @@ class RoboCupSkillsTeamArgs:
     until the game ends; then print the decision latency."""
 
     skills: str = "skills_naive"
-    """The skills team: skills_naive."""
+    """The skills team: skills_naive, or a trained skills team (a checkpoint of elevens train
+    skills-2v2 / skills-11v11, PATH@ITERATION, or a team exported from one)."""
+    sample: bool = False
+    """A trained team samples its actions instead of playing their mode."""
     host: str = "127.0.0.1"
     """The server's host."""
     port: int = 6000
@@ -41,11 +44,12 @@ class RoboCupSkillsTeamArgs:
 def skills_team(args: RoboCupSkillsTeamArgs) -> None:
     from elevens.robocup.protocol import InitPlayer
     from elevens.robocup.server import ServerAddress
-    from elevens.robocup.skills import skills_policy
+    from elevens.robocup.skills import check_skills_policy, skills_policy
     from elevens.robocup.skills.proxy import find_proxy, play_skills_team
 
-    # Bad input first, in one line each: the team, its name, the proxy.
-    decide = skills_policy(args.skills)
+    # Bad input first, in one line each: the team (its config only), its name, the proxy;
+    # then the team's networks are loaded and compiled, before the players start.
+    check_skills_policy(args.skills)
     InitPlayer(args.team_name)
     if args.gather_ms >= args.deadline_ms:
         raise ValueError(
@@ -53,6 +57,7 @@ def skills_team(args: RoboCupSkillsTeamArgs) -> None:
             f"{args.deadline_ms:g}"
         )
     find_proxy(args.proxy)
+    decide = skills_policy(args.skills, deterministic=not args.sample)
     result = play_skills_team(
         decide, ServerAddress.from_port(args.port, args.host), args.team_name,
         proxy=args.proxy, players=args.players, coach=args.coach,

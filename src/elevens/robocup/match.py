@@ -100,13 +100,15 @@ class ElevensTeam:
 
 @dataclasses.dataclass(frozen=True)
 class SkillsTeam:
-    """A skills team (``spec``: a name of ``elevens.robocup.skills.SKILLS``), run as ``elevens
-    robocup skills-team``: elevens' decision server and the proxy's players, which it starts
-    (``proxy``: their folder; None: where ``skills-team`` looks by default)."""
+    """A skills team (``spec``: a name of ``elevens.robocup.skills.SKILLS`` or a trained
+    skills team), run as ``elevens robocup skills-team``: elevens' decision server and the
+    proxy's players, which it starts (``proxy``: their folder; None: where ``skills-team``
+    looks by default). ``sample``: a trained team samples its actions."""
 
     spec: str
     name: str = "elevens"
     proxy: str | None = None
+    sample: bool = False
 
     def command(self, host: str, port: int, players: int, synch: bool) -> list[str]:
         # The decision server batches by arrival: synch mode and real time need no flag.
@@ -115,6 +117,7 @@ class SkillsTeam:
             "--host", host, "--port", str(port), "--team-name", self.name,
             "--players", str(players), "--json",
         ]
+        args += ["--sample"] if self.sample else []
         return args + ([] if self.proxy is None else ["--proxy", self.proxy])
 
 
@@ -451,9 +454,11 @@ def parse_team(
         return ExternalTeam(cmd, name)
     assert spec is not None
     from elevens.robocup.skills import SKILLS
+    from elevens.robocup.skills.learned import is_skills_team
 
-    if spec in SKILLS:
-        return SkillsTeam(spec, name)
+    # A trained team plays through the skills proxy when its action is the skill decision.
+    if spec in SKILLS or is_skills_team(spec):
+        return SkillsTeam(spec, name, sample=sample)
     try:
         ChangeView(view)
     except ValueError as error:

@@ -312,6 +312,35 @@ def load_team(spec: str | TeamSpec, *, deterministic: bool | None = None) -> Tea
     )
 
 
+def trained_config(spec: str | TeamSpec) -> Any | None:
+    """The TrainConfig of a trained team spec (a shipped name, an exported folder or a
+    checkpoint), read without its networks: what it plays is known before the weights load.
+    None for a handcrafted team; a bad spec raises as ``load_team`` does."""
+    import json
+
+    from elevens.teams.trained import CONFIG_FILE, shipped_team_directory
+    from elevens.train.config import TrainConfig
+
+    parsed = parse_team_spec(spec) if isinstance(spec, str) else spec
+    if parsed.handcrafted is not None:
+        return None
+    folder = shipped_team_directory(parsed.shipped) if parsed.shipped is not None else None
+    if folder is None and parsed.path is not None and is_exported_team(parsed.path):
+        if parsed.iteration is not None:
+            raise ValueError(
+                f"team spec {parsed.text!r}: an exported team has one set of networks, drop "
+                "the '@ITERATION'"
+            )
+        folder = parsed.path
+    if folder is not None:
+        where = folder / CONFIG_FILE
+        return TrainConfig.from_saved(json.loads(where.read_text()), str(where))
+    assert parsed.path is not None
+    checkpointer, _, config = _open_checkpoint(parsed.path, parsed.iteration)
+    checkpointer.close()
+    return config
+
+
 def load_shipped_team(name: str) -> tuple[Any, Any]:
     """(TrainConfig, LearnerParams) of shipped team ``name``. An unknown name is a
     ``ValueError`` listing the shipped teams (see ``load_exported_team`` for the rest)."""

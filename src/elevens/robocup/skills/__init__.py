@@ -10,6 +10,9 @@ cycle over Thrift. The modules:
 * :mod:`~elevens.robocup.skills.space` -- the decision space (kind + argument) and the proxy
   actions that carry it out.
 * :mod:`~elevens.robocup.skills.naive` -- ``skills_naive``, the scripted yardstick.
+* :mod:`~elevens.robocup.skills.learned` -- a trained skills policy (a checkpoint of
+  ``elevens train skills-2v2`` / ``skills-11v11``, or a team exported from one): the world
+  model as the skill game's observations, the policy's action decoded as the game decodes it.
 * :mod:`~elevens.robocup.skills.runtime` -- the decision server: one batched decision per
   cycle, a default for a request that misses its deadline.
 * :mod:`~elevens.robocup.skills.proxy` -- finding the proxy and starting its players.
@@ -20,14 +23,29 @@ from __future__ import annotations
 from elevens.robocup.skills.naive import skills_naive
 from elevens.robocup.skills.runtime import Decide
 
-__all__ = ["SKILLS", "skills_policy"]
+__all__ = ["SKILLS", "check_skills_policy", "skills_policy"]
 
 #: The skills teams by name: each is a batched ``decide(states) -> actions``.
 SKILLS: dict[str, Decide] = {"skills_naive": skills_naive}
 
 
-def skills_policy(name: str) -> Decide:
-    """The skills team called ``name``; a ValueError naming the allowed ones otherwise."""
-    if name not in SKILLS:
-        raise ValueError(f"skills team {name!r} is unknown (allowed: {', '.join(sorted(SKILLS))})")
-    return SKILLS[name]
+def check_skills_policy(spec: str) -> None:
+    """ValueError in one line unless ``spec`` is a skills team: a name of :data:`SKILLS`, or
+    a trained skills team (its config is read, not its networks)."""
+    if spec in SKILLS:
+        return
+    from elevens.robocup.skills.learned import check_skills_team
+
+    check_skills_team(spec, sorted(SKILLS))
+
+
+def skills_policy(spec: str, *, deterministic: bool = True) -> Decide:
+    """The skills team ``spec``: a name of :data:`SKILLS`, or a trained skills team (a
+    checkpoint path, ``PATH@ITERATION`` or an exported folder), loaded and compiled, playing
+    the mode of its action unless ``deterministic`` is False. A spec that is neither is a
+    ValueError naming what is allowed."""
+    if spec in SKILLS:
+        return SKILLS[spec]
+    from elevens.robocup.skills.learned import load_learned_skills
+
+    return load_learned_skills(spec, deterministic=deterministic)

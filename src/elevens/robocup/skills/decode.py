@@ -27,7 +27,8 @@ A player's action is ``f32[4] = (kind, pointer, x, y)``:
 
 What an action that cannot be done does instead (:func:`decode`): a with-ball kind (SHOOT,
 PASS, DRIBBLE, HOLD) without the ball in kicking reach intercepts; a PASS whose pointer is not a
-teammate holds; a MARK whose pointer is not an opponent goes to its (x, y) point as GO_TO.
+teammate holds; a MARK whose pointer is not an opponent goes to its (x, y) point as GO_TO (a
+pointer to a slot the player's observation does not place counts as neither).
 
 Array code: every function takes ``xp`` (numpy or jax.numpy) and any leading axes where it
 says ``[m]``; the jnp versions trace under jit and vmap.
@@ -145,9 +146,11 @@ def _layout(players_per_team: int) -> np.ndarray:
 
 def decode(action: Any, context: SkillContext, players_per_team: int, *,
            half: tuple[Any, Any] = SERVER_HALF, goal_half_width: Any = 7.01,
-           xp: Any = np) -> SkillChoice:
+           seen: Any = None, xp: Any = np) -> SkillChoice:
     """action f32[m, 4] -> :class:`SkillChoice` for the players of ``context`` (module
-    docstring). NaN counts as 0."""
+    docstring). NaN counts as 0. ``seen`` bool[m, 2n]: the slots each player's observation
+    places (None: all, as in the simulator); a PASS or MARK through a slot it does not place
+    falls back as one through a slot of the wrong kind."""
     n = players_per_team
     action = xp.where(xp.isnan(action), 0.0, action)
     kind = xp.clip(xp.round(action[:, 0]), 0, OPEN_KINDS - 1).astype(xp.int32)
@@ -159,6 +162,8 @@ def decode(action: Any, context: SkillContext, players_per_team: int, *,
     target = (table * (pointer[:, None] == np.arange(2 * n)[None, :])).sum(axis=1)
     team = context.observer // n
     is_player = target < 2 * n
+    if seen is not None:
+        is_player = is_player & (xp.asarray(seen) & (pointer[:, None] == np.arange(2 * n))).any(1)
     mate = is_player & (target // n == team)
     opponent = is_player & (target // n != team)
 

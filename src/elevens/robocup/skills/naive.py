@@ -38,8 +38,8 @@ from elevens.robocup.skills.space import (
 )
 
 __all__ = [
-    "FORMATION", "SHOOT_RANGE", "SLIDE", "naive_choices", "skills_naive", "skills_naive_decisions",
-    "slot_targets",
+    "FORMATION", "SHOOT_RANGE", "SLIDE", "kick_off_points", "naive_choices", "outside_open_play",
+    "skills_naive", "skills_naive_decisions", "slot_targets",
 ]
 
 SHOOT_RANGE = 25.0
@@ -162,16 +162,32 @@ def naive_choices(obs: Observation, xp: Any = np) -> tuple[Any, Any, Any]:
                           put(passing, 0.0, point))
     kind, index = put(dribble, Kind.DRIBBLE, kind), put(dribble, direction, index)
     kind = put(hold, Kind.HOLD, kind)
+    return outside_open_play(obs, kind, index, point, xp)
 
-    # Outside open play, and the goalie.
+
+def kick_off_points(unum: Any, xp: Any = np) -> Any:
+    """Where each player (shirt numbers int[m]) stands before a kick-off: its formation slot
+    with the ball at the centre spot, in our half (x <= -1), f32[m, 2]."""
+    home = xp.asarray(FORMATION)[unum - 1]
+    return xp.stack([xp.minimum(home[:, 0], -1.0), home[:, 1]], axis=1)
+
+
+def outside_open_play(obs: Observation, kind: Any, index: Any, point: Any,
+                      xp: Any = np) -> tuple[Any, Any, Any]:
+    """Open-play decisions (kind, index, point) with what every skills team plays outside
+    open play laid over them: before a kick-off everyone moves to :func:`kick_off_points`;
+    the goalie plays the proxy's goalie, set pieces and penalties its ready behaviours."""
+
+    def put(mask: Any, value: Any, into: Any) -> Any:
+        return xp.where(mask[:, None] if into.ndim == 2 else mask, value, into)
+
     placing = (obs.mode == _BEFORE_KICK_OFF) | (obs.mode == _AFTER_GOAL)
     set_play = ~placing & (obs.mode != _PLAY_ON)
     kind = put(set_play, Kind.SET_PLAY, kind)
     kind = put(obs.goalie & ~placing, Kind.GOALIE, kind)
     kind = put(obs.penalty, Kind.PENALTY, kind)
-    home = xp.asarray(FORMATION)[obs.unum - 1]
     kind = put(placing, Kind.KICKOFF_MOVE, kind)
-    point = put(placing, xp.stack([xp.minimum(home[:, 0], -1.0), home[:, 1]], axis=1), point)
+    point = put(placing, kick_off_points(obs.unum, xp), point)
     return kind.astype(xp.int32), index.astype(xp.int32), point.astype(xp.float32)
 
 

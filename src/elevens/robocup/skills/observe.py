@@ -3,8 +3,8 @@ opponents in slots by shirt number, so a policy decides all of them in one vecto
 
 Coordinates are librcsc's (metres; our team attacks towards +x on either side of the field);
 angles are degrees. A slot whose player this player's world model does not place is invalid
-(``mates_valid`` / ``opps_valid`` false, position zero). The player's own slot in ``mates``
-holds itself and is valid.
+(``mates_valid`` / ``opps_valid`` false, position, velocity and body zero). The player's own
+slot in ``mates`` holds itself and is valid.
 """
 
 from __future__ import annotations
@@ -40,6 +40,10 @@ class Observation:
     mates_valid: np.ndarray  # bool [n, 11]
     opps: np.ndarray  # float32 [n, 11, 2]
     opps_valid: np.ndarray  # bool [n, 11]
+    mates_vel: np.ndarray  # float32 [n, 11, 2], as the world model estimates it
+    opps_vel: np.ndarray  # float32 [n, 11, 2]
+    mates_body: np.ndarray  # float32 [n, 11], degrees (librcsc's estimate; 0 if never seen)
+    opps_body: np.ndarray  # float32 [n, 11]
     opp_goalie: np.ndarray  # int32 [n], their goalie's shirt number (0: unknown)
     self_reach: np.ndarray  # int32 [n], intercept table: cycles for this player to the ball
     mate_reach: np.ndarray  # int32 [n], for the fastest other teammate
@@ -62,12 +66,15 @@ def _xy(v: Any) -> tuple[float, float]:
     return (0.0, 0.0) if v is None else (float(v.x or 0.0), float(v.y or 0.0))
 
 
-def _slots(players: Sequence[Any] | None, pos: np.ndarray, valid: np.ndarray) -> None:
+def _slots(players: Sequence[Any] | None, pos: np.ndarray, valid: np.ndarray, vel: np.ndarray,
+           body: np.ndarray) -> None:
     for p in players or ():
         k = int(p.uniform_number or 0)
         if 1 <= k <= PLAYERS:
             pos[k - 1] = _xy(p.position)
             valid[k - 1] = True
+            vel[k - 1] = _xy(p.velocity)
+            body[k - 1] = p.body_direction or 0.0
 
 
 def observe(states: Sequence[Any]) -> Observation:
@@ -84,6 +91,8 @@ def observe(states: Sequence[Any]) -> Observation:
         "ball_pos_count": f(n, np.int32),
         "mates": f((n, PLAYERS, 2), np.float32), "mates_valid": f((n, PLAYERS), bool),
         "opps": f((n, PLAYERS, 2), np.float32), "opps_valid": f((n, PLAYERS), bool),
+        "mates_vel": f((n, PLAYERS, 2), np.float32), "opps_vel": f((n, PLAYERS, 2), np.float32),
+        "mates_body": f((n, PLAYERS), np.float32), "opps_body": f((n, PLAYERS), np.float32),
         "opp_goalie": f(n, np.int32), "self_reach": f(n, np.int32),
         "mate_reach": f(n, np.int32), "opp_reach": f(n, np.int32),
         "kickable_mate": f(n, bool), "kickable_opp": f(n, bool),
@@ -112,10 +121,14 @@ def observe(states: Sequence[Any]) -> Observation:
             out["ball"][i] = _xy(ball.position)
             out["ball_vel"][i] = _xy(ball.velocity)
             out["ball_pos_count"][i] = ball.pos_count or 0
-        _slots(wm.teammates, out["mates"][i], out["mates_valid"][i])
+        _slots(wm.teammates, out["mates"][i], out["mates_valid"][i], out["mates_vel"][i],
+               out["mates_body"][i])
         out["mates"][i, unum - 1] = out["pos"][i]
         out["mates_valid"][i, unum - 1] = True
-        _slots(wm.opponents, out["opps"][i], out["opps_valid"][i])
+        out["mates_vel"][i, unum - 1] = out["vel"][i]
+        out["mates_body"][i, unum - 1] = out["body"][i]
+        _slots(wm.opponents, out["opps"][i], out["opps_valid"][i], out["opps_vel"][i],
+               out["opps_body"][i])
         out["opp_goalie"][i] = wm.their_goalie_uniform_number or 0
         table = wm.intercept_table
         if table is not None:

@@ -94,6 +94,8 @@ def skill_observation(obs: Observation, field: Field,
     mates = jnp.where(own[..., None], pos[:, None, :], where[jnp.arange(n)[:, None], safe])
     mates_valid = own | seen[jnp.arange(n)[:, None], safe]
     mates_heading = jnp.where(own, heading[:, None], other_heading[jnp.arange(n)[:, None], safe])
+    # The observation has no own velocity (SELF_FEATURES): the player's own is zero here.
+    mates_velocity = jnp.where(own[..., None], 0.0, velocity[jnp.arange(n)[:, None], safe])
     opps, opps_valid = where[:, opp_slot], seen[:, opp_slot]
     opps_heading = other_heading[:, opp_slot]
 
@@ -139,6 +141,10 @@ def skill_observation(obs: Observation, field: Field,
         mates_valid=by_shirt(mates_valid, False),
         opps=by_shirt(opps),
         opps_valid=by_shirt(opps_valid, False),
+        mates_vel=by_shirt(jnp.where(mates_valid[..., None], mates_velocity, 0.0)),
+        opps_vel=by_shirt(jnp.where(opps_valid[..., None], velocity[:, opp_slot], 0.0)),
+        mates_body=by_shirt(jnp.where(mates_valid, jnp.degrees(mates_heading), 0.0)),
+        opps_body=by_shirt(jnp.where(opps_valid, jnp.degrees(opps_heading), 0.0)),
         opp_goalie=jnp.ones(n, jnp.int32),
         self_reach=jnp.diagonal(mate_steps),
         mate_reach=jnp.min(jnp.where(own, never, mate_steps), axis=1),

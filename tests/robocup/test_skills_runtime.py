@@ -268,7 +268,9 @@ def test_the_command_plays_the_team_and_prints_its_report(tmp_path: Path) -> Non
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([src, os.environ.get("PYTHONPATH", "")])}
     done = subprocess.run(
         [sys.executable, "-m", "elevens", "robocup", "skills-team", "--proxy", str(folder),
-         "--port", "6200", "--team-name", "skills", "--json"],
+         "--port", "6200", "--team-name", "skills", "--json",
+         # A cycle's eleven arrive together; windows a busy host cannot split.
+         "--gather-ms", "4000", "--deadline-ms", "8000"],
         capture_output=True, text=True, env=env, timeout=120,
     )
     assert done.returncode == 0, done.stderr

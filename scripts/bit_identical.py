@@ -58,7 +58,7 @@ def dump(out: Path, names: list[str]) -> None:
     out.mkdir(parents=True, exist_ok=True)
     for name in names:
         for game, learner_config in game_configs(config_of(name).learner).items():
-            learner = make_learner(learner_config, team_on_field)
+            learner = make_learner(learner_config, learner_config.make_env(), team_on_field)
             state, metrics = learner.update_chunk(learner.init(jax.random.key(0)))
             leaves = jax.tree.leaves((state.params, state.opponent, state.opt_state))
             arrays = {f"s{i}": np.asarray(leaf) for i, leaf in enumerate(leaves)}

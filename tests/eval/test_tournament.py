@@ -156,7 +156,7 @@ def checkpoint_2v2(tmp_path_factory):
             "ppo.minibatch_size": 4, "run.eval_deterministic": True,
         },
     )
-    state = make_learner(config.learner).init(jax.random.key(0))
+    state = make_learner(config.learner, config.learner.make_env()).init(jax.random.key(0))
     run = tmp_path_factory.mktemp("run")
     with Checkpointer(run / "checkpoints") as checkpointer:
         checkpointer.save(3, state, config.to_dict(), {"iteration": 3})

@@ -97,7 +97,11 @@ def test_the_preset_and_a_saved_config_read_back_as_the_games_class() -> None:
     assert isinstance(config.learner.env, RcssEnvConfig) and config.preset == "rcss-11v11"
     assert (config.learner.env.game.field_length, config.learner.network.actions) == (105.0, 12)
     assert TrainConfig.from_json(config.to_json()) == config
-    assert config.learner.env.scripted_players == (0,)
+    game = config.learner.make_env()
+    assert game.scripted_players == (0,) and game.actions == 12
+    # Built again alike it is the same game (make_learner caches on it); its settings count.
+    assert game == config.learner.make_env() and hash(game) == hash(config.learner.make_env())
+    assert game != rcss_config("11v11", **{"env.see_period": 3}).learner.make_env()
 
 
 def test_the_goalie_routine_needs_a_player_for_the_policy() -> None:
@@ -117,7 +121,7 @@ def test_with_the_goalie_routine_the_goalies_samples_leave_the_policy_loss() -> 
             "env.goalie": goalie, "env.players_per_team": 2, "games_per_iteration": 4,
             "ppo.minibatch_size": 8, "env.episode_length": 8,
         })
-        setup = learner.make_setup(config.learner)
+        setup = learner.make_setup(config.learner, config.learner.make_env())
         state = learner.init_state(setup, jax.random.key(0))
         data = learner.collect(setup, state, jax.random.key(1))
         values = jnp.repeat(setup.critic.apply(state.params.critic, data.game_global_state),
@@ -155,7 +159,7 @@ def test_players_a_server_routine_played_leave_the_policy_loss_too() -> None:
         "env.goalie": True, "env.players_per_team": 2, "games_per_iteration": 4,
         "ppo.minibatch_size": 8, "env.episode_length": 8,
     })
-    setup = learner.make_setup(config.learner)
+    setup = learner.make_setup(config.learner, config.learner.make_env())
     state = learner.init_state(setup, jax.random.key(0))
     data = learner.collect(setup, state, jax.random.key(1))
     goalie_only = np.asarray(learner.policy_played(setup, data))

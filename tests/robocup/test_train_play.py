@@ -164,7 +164,7 @@ def test_the_robocup_config_is_the_simulators_learner_and_run() -> None:
 
 def test_server_games_pack_a_rollout_like_the_compiled_one(tmp_path: Path) -> None:
     config = small_config(tmp_path, **{"env.players_per_team": 2, "env.episode_length": 6})
-    trainer = make_learner(config.learner)
+    trainer = make_learner(config.learner, config.learner.make_env())
     state = trainer.init(jax.random.key(0))
     envs = [SimEnv(2), SimEnv(2, restart_at=3)]
     games = ServerGames(config, lambda g: envs[g])
@@ -201,7 +201,7 @@ def test_an_external_opponent_leaves_the_learner_on_the_left_and_its_side_unplay
 ) -> None:
     config = small_config(tmp_path, **{"env.players_per_team": 2, "env.episode_length": 4,
                                        "server.opponent_cmd": "start.sh"})
-    trainer = make_learner(config.learner)
+    trainer = make_learner(config.learner, config.learner.make_env())
     state = trainer.init(jax.random.key(0))
     envs = [SimEnv(2), SimEnv(2)]
     with ServerGames(config, lambda g: envs[g]).open(trainer) as collect:
@@ -571,7 +571,9 @@ def test_init_from_a_checkpoint_starts_from_its_networks_and_resumes_with_them(
     # A source with other networks than small_config's, written by hand (an init, no training).
     networks = {**SMALL_NETWORKS, "network.features": 24}
     source_config = make_config("2v2", **{"env.players_per_team": 1, **networks})
-    source_state = make_learner(source_config.learner).init(jax.random.key(3))
+    source_state = make_learner(
+        source_config.learner, source_config.learner.make_env()
+    ).init(jax.random.key(3))
     with Checkpointer(tmp_path / "source" / "checkpoints") as checkpointer:
         checkpointer.save(0, source_state, source_config.to_dict(), {"iteration": 0})
     # Its networks must be this run's: a clear refusal names the flags to pass.

@@ -36,7 +36,7 @@ def checkpoint(tmp_path_factory: pytest.TempPathFactory) -> Path:
     config = tiny_config(
         run, **{"env.players_per_team": 2, "ppo.minibatch_size": 32}
     )
-    state = make_learner(config.learner).init(jax.random.key(11))
+    state = make_learner(config.learner, config.learner.make_env()).init(jax.random.key(11))
     with Checkpointer(run / "checkpoints") as checkpointer:
         checkpointer.save(0, state, config.to_dict(), {"iteration": 0})
     return run

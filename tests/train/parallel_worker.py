@@ -49,8 +49,9 @@ def devices_mode(out: str) -> None:
     from elevens.train.learner import make_learner
 
     arrays: dict[str, np.ndarray] = {}
+    config = make_config("quickstart", **TINY).learner
     for devices in (1, 2):
-        trainer = make_learner(make_config("quickstart", **TINY).learner, devices=devices)
+        trainer = make_learner(config, config.make_env(), devices=devices)
         state = trainer.init(jax.random.key(0))
         state, metrics = trainer.update_chunk(state)
         arrays.update(flat(state.params, f"{devices}/params"))

@@ -246,11 +246,47 @@ def test_validation_compiles_nothing(monkeypatch: pytest.MonkeyPatch) -> None:
     object.__setattr__(bad_ppo, "learning_rate", -1.0)  # past PPOHyperparams' own check
     bad = _with_learner(config, ppo=bad_ppo)
     with pytest.raises(ValueError, match="learning_rate"):
-        learner_module.make_learner(bad.learner)
+        learner_module.make_learner(bad.learner, bad.learner.make_env())
 
 
 def _not_built(*args: object, **kwargs: object) -> None:
     raise AssertionError("a learner was built (traced and compiled) for a refused config")
+
+
+def test_the_learner_refuses_a_game_that_is_not_its_configs(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # The caller builds the game; a wrong one gets one line, before anything is built.
+    from elevens.env.soccer import Soccer
+    from elevens.runs.teams import team_on_field
+    from elevens.train import learner as learner_module
+
+    monkeypatch.setattr(learner_module, "_build_learner", _not_built)
+    learner = make_config("2v2").learner
+    refusals = [
+        (team_on_field, r"^env=<function team_on_field .*> is not a game: make_learner takes "
+                        r"the game to train in, a Soccer \(config.make_env\(\)\)$"),
+        (Soccer(3), r"^env plays 3 a side, but the config's game has env.players_per_team=2: "),
+    ]
+    for env, message in refusals:
+        with pytest.raises(ValueError, match=message) as raised:
+            learner_module.make_learner(learner, env)  # type: ignore[arg-type]
+        assert "\n" not in str(raised.value)
+
+
+def test_games_built_alike_are_equal() -> None:
+    # make_learner caches on its game: one built again (a resume) must find the same learner.
+    from elevens.env.soccer import Soccer
+
+    class Tired(Soccer):
+        def __init__(self, players_per_team: int, stamina: bool) -> None:
+            super().__init__(players_per_team)
+            self.stamina = stamina
+
+    assert Soccer(2) == Soccer(2) and hash(Soccer(2)) == hash(Soccer(2))
+    assert Soccer(2) != Soccer(3) and Soccer(2) != Tired(2, False)
+    assert Tired(2, True) == Tired(2, True) and Tired(2, True) != Tired(2, False)
+    assert len({Soccer(2), Soccer(2), Tired(2, True), Tired(2, True)}) == 2
 
 
 def test_every_opponent_kind_is_accepted() -> None:
@@ -452,9 +488,9 @@ def test_the_action_count_is_2_or_12_and_training_takes_2() -> None:
     with pytest.raises(ValueError, match=r"network.actions=5 is invalid: it must be 2 .* or 12"):
         make_config("quickstart", **{"network.actions": 5})
     twelve = make_config("quickstart", **{"network.actions": 12})
-    with pytest.raises(ValueError, match=r"network.actions=12: the game env.physics='thesis' "
-                       r"takes 2 action values"):
-        make_learner(twelve.learner)
+    with pytest.raises(ValueError, match=r"network.actions=12: the game Soccer "
+                       r"\(env.physics='thesis'\) takes 2 action values"):
+        make_learner(twelve.learner, twelve.learner.make_env())
     # A config saved before the field existed reads as 2, without a warning about it.
     saved = make_config("quickstart").to_dict()
     del saved["learner"]["network"]["actions"]
@@ -466,11 +502,16 @@ def test_the_action_count_is_2_or_12_and_training_takes_2() -> None:
 
 
 def test_the_learner_takes_the_game_its_config_makes(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The core knows one game; another registers its EnvConfig subclass, whose make_env and
-    actions the learner takes, and a saved config of it reads back as that class."""
+    """The core knows one game; another registers its EnvConfig subclass, whose make_env
+    builds the game the learner is given and takes the action of, and a saved config of it
+    reads back as that class."""
+    from elevens.env.soccer import Soccer
     from elevens.train import config as config_module
     from elevens.train.config import EnvConfig, apply_overrides, make_config
     from elevens.train.learner import make_learner
+
+    class WideSoccer(Soccer):
+        actions = 12
 
     @dataclasses.dataclass(frozen=True)
     class WideGame(EnvConfig):
@@ -478,9 +519,12 @@ def test_the_learner_takes_the_game_its_config_makes(monkeypatch: pytest.MonkeyP
         width: int = 3
         PHYSICS: ClassVar[str] = "wide"
 
+        def make_env(self, players_per_team: int) -> Soccer:
+            return WideSoccer(players_per_team)
+
         @property
         def actions(self) -> int:
-            return 12
+            return WideSoccer.actions
 
     base = make_config("quickstart", **{"run.eval_teams": (), "run.write_gif": False})
     fields = {f.name: getattr(base.learner.env, f.name) for f in dataclasses.fields(EnvConfig)}
@@ -491,9 +535,9 @@ def test_the_learner_takes_the_game_its_config_makes(monkeypatch: pytest.MonkeyP
         wide.validate()
     monkeypatch.setitem(config_module.GAMES, "wide", WideGame)
     wide.validate()
-    with pytest.raises(ValueError, match=r"network.actions=2: the game env.physics='wide' takes "
-                       r"12 action values"):
-        make_learner(wide.learner)
+    with pytest.raises(ValueError, match=r"network.actions=2: the game WideSoccer "
+                       r"\(env.physics='wide'\) takes 12 action values"):
+        make_learner(wide.learner, wide.learner.make_env())
     wide12 = apply_overrides(wide, {"network.actions": 12, "env.width": 5})
     assert TrainConfig.from_json(wide12.to_json()) == wide12
     assert type(TrainConfig.from_json(wide12.to_json()).learner.env) is WideGame

@@ -55,7 +55,7 @@ def test_self_play_and_fixed_teams_share_the_games_and_are_reported_apart() -> N
         }
     )
     assert opponent_mix(config.learner) == [("self", 32), ("naive", 16), ("random", 16)]
-    trainer = make_learner(config.learner, team_on_field)
+    trainer = make_learner(config.learner, config.learner.make_env(), team_on_field)
     state = trainer.init(jax.random.key(0))
     assert state.opponent.indices.shape == (32,)  # league snapshots for self-play games only
     state, metrics = trainer.update_chunk(state)
@@ -90,18 +90,19 @@ def test_a_league_needs_self_play_and_an_unknown_team_is_named() -> None:
     with pytest.raises(ValueError, match="without self-play is invalid with opponent.kind"):
         tiny_config(**{"opponent.kind": "league", "opponent.mix": ("naive=1",)})
     assert self_play_games(tiny_config(**{"opponent.mix": ("naive=0.25",)}).learner) == 48
+    nobody = make_config("quickstart", **{"opponent.mix": ("nobody=0.5",)}).learner
     with pytest.raises(ValueError, match="opponent.mix team .nobody.: team spec: nobody does not"):
-        make_learner(
-            make_config("quickstart", **{"opponent.mix": ("nobody=0.5",)}).learner, team_on_field
-        )
+        make_learner(nobody, nobody.make_env(), team_on_field)
+    naive = make_config("quickstart", **{"opponent.mix": ("naive=0.5",)}).learner
     with pytest.raises(ValueError, match="names fixed teams: pass load_team"):
-        make_learner(make_config("quickstart", **{"opponent.mix": ("naive=0.5",)}).learner)
+        make_learner(naive, naive.make_env())
 
 
 def test_evaluation_tracks_a_trained_team_and_refuses_an_unknown_one(tmp_path: Path) -> None:
     from elevens.runs.loop import evaluate
 
-    trainer = make_learner(tiny_config().learner)
+    config = tiny_config()
+    trainer = make_learner(config.learner, config.learner.make_env())
     state = trainer.init(jax.random.key(0))
     results = evaluate(trainer, state, jax.random.key(1), teams=("elevens-2v2", "naive"),
                        num_games=4)
@@ -117,7 +118,7 @@ def test_a_shorter_last_chunk_trains_against_a_trained_team_in_the_mix() -> None
     # A run whose iterations are not a multiple of K ends on a shorter scan, compiled for the
     # learner at hand: a trained team's params in the mix must not stop that.
     config = tiny_config(**{"opponent.mix": ("elevens-2v2=0.25",)})
-    learner = make_learner(config.learner, team_on_field)
+    learner = make_learner(config.learner, config.learner.make_env(), team_on_field)
     state = learner.init(jax.random.key(0))
     state, metrics = learner.update(state, 1)  # K is 2
     assert int(state.iteration) == 1

@@ -102,7 +102,8 @@ def test_device_counts_that_do_not_split_the_games_are_refused() -> None:
         parallel.check_divisible("run.games_per_iteration", 5, two_devices, "fix")  # type: ignore[arg-type]
     parallel.check_divisible("run.games_per_iteration", 6, two_devices, "fix")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match=r"run.devices=3 is invalid: give 0 .* or 1 to 1"):
-        make_learner(make_config("quickstart", **TINY).learner, devices=3)
+        tiny = make_config("quickstart", **TINY).learner
+        make_learner(tiny, tiny.make_env(), devices=3)
     with pytest.raises(ValueError, match=r"run.devices=-1 is invalid"):
         make_config("quickstart", **{"run.devices": -1})
 

@@ -64,29 +64,40 @@ def test_the_head_is_saved_and_a_config_without_it_reads_as_gaussian() -> None:
 
 
 def test_a_game_of_another_action_count_is_refused(monkeypatch: pytest.MonkeyPatch) -> None:
+    from elevens.env.soccer import Soccer
     from elevens.train import config as config_module
+
+    class FourValueSoccer(Soccer):
+        actions = 4
 
     @dataclasses.dataclass(frozen=True)
     class FourValueGame(EnvConfig):
         physics: str = "four"
         PHYSICS: ClassVar[str] = "four"
 
+        def make_env(self, players_per_team: int) -> Soccer:
+            return FourValueSoccer(players_per_team)
+
         @property
         def actions(self) -> int:
-            return 4
+            return FourValueSoccer.actions
 
     monkeypatch.setitem(config_module.GAMES, "four", FourValueGame)
     head = make_config("quickstart", **HEAD, **{"run.eval_teams": (), "run.write_gif": False})
-    with pytest.raises(ValueError, match=r"^network.actions=4: the game env.physics='thesis' "
-                       r"takes 2 action values"):
-        make_learner(head.learner)
+    with pytest.raises(ValueError, match=r"^network.actions=4: the game Soccer "
+                       r"\(env.physics='thesis'\) takes 2 action values"):
+        make_learner(head.learner, head.learner.make_env())
     fields = {f.name: getattr(head.learner.env, f.name) for f in dataclasses.fields(EnvConfig)}
     four = dataclasses.replace(head.learner, env=FourValueGame(**{**fields, "physics": "four"}))
-    make_learner(four)  # builds (nothing compiles until it runs)
+    make_learner(four, four.make_env())  # builds (nothing compiles until it runs)
     gaussian = dataclasses.replace(four, network=make_config("quickstart").learner.network)
-    with pytest.raises(ValueError, match=r"^network.actions=2: the game env.physics='four' "
-                       r"takes 4 action values"):
-        make_learner(gaussian)
+    with pytest.raises(ValueError, match=r"^network.actions=2: the game FourValueSoccer "
+                       r"\(env.physics='four'\) takes 4 action values"):
+        make_learner(gaussian, gaussian.make_env())
+    # The game given must be the config's size.
+    with pytest.raises(ValueError, match=r"^env plays 3 a side, but the config's game has "
+                       r"env.players_per_team=1"):
+        make_learner(four, FourValueSoccer(3))
     # A team of the head, met in the simulator's own game (an evaluation, a fixed opponent).
     team = Team(name="pointer", policy=NetworkTeam(), spec="runs/p", actions=4)
     with pytest.raises(ValueError, match=r"^team 'pointer' \(runs/p\) gives 4 action values; "
@@ -108,7 +119,7 @@ def test_ppo_updates_the_parametrised_policy_and_its_export_plays(tmp_path: Path
            "ppo.minibatch_size": 4, "ppo.learning_rate": 3e-3, "env.players_per_team": 2,
            "run.eval_teams": (), "run.write_gif": False},
     )
-    learner = make_learner(config.learner, external_games=True)
+    learner = make_learner(config.learner, config.learner.make_env(), external_games=True)
     env, params, policy = learner.env, learner.env_params, learner.policy
     games, n, steps = 8, 2, 4
     state = learner.init(jax.random.key(0))

@@ -72,7 +72,9 @@ def uncached_trainer(config: TrainConfig) -> Learner:
     """A trainer built past make_learner's small cache, so that tests which only trace, or which
     patch module constants, do not evict the compiled trainers the other tests share."""
     validate(config)
-    return learner_module._build_learner.__wrapped__(config.learner, None, config.run.devices)
+    return learner_module._build_learner.__wrapped__(
+        config.learner, config.learner.make_env(), None, config.run.devices
+    )
 
 
 def leaves_equal(a: Any, b: Any) -> bool:
@@ -99,7 +101,7 @@ def leaves_equal(a: Any, b: Any) -> bool:
 
 def test_update_chunk_runs_compiles_once_and_is_deterministic() -> None:
     config = tiny_config()
-    trainer = make_learner(config.learner)
+    trainer = make_learner(config.learner, config.learner.make_env())
     state = trainer.init(jax.random.key(0))
     first, metrics = trainer.update_chunk(state)
     second, _ = trainer.update_chunk(first)
@@ -125,16 +127,17 @@ def test_update_chunk_runs_compiles_once_and_is_deterministic() -> None:
     assert leaves_equal(trainer.init(jax.random.key(0)), state)
     assert not leaves_equal(trainer.init(jax.random.key(1)).params, state.params)
     # A rebuilt trainer for a run differing only in host-loop fields reuses the compiled chunk.
-    other = make_learner(tiny_config("elsewhere", **{"run.iterations": 9}).learner)
+    # The game is built again, as a resume builds it: an equal game finds the cached learner.
+    elsewhere = tiny_config("elsewhere", **{"run.iterations": 9}).learner
+    other = make_learner(elsewhere, elsewhere.make_env())
     assert other.update_chunk is trainer.update_chunk
 
 
 def test_configs_with_the_same_networks_share_their_initialisation() -> None:
     config = tiny_config()
-    trainer = make_learner(config.learner)
-    other = make_learner(
-        tiny_config(**{"ppo.learning_rate": 1e-3, "opponent.kind": "self"}).learner
-    )
+    trainer = make_learner(config.learner, config.learner.make_env())
+    other_config = tiny_config(**{"ppo.learning_rate": 1e-3, "opponent.kind": "self"}).learner
+    other = make_learner(other_config, other_config.make_env())
     assert other is not trainer
     state, other_state = trainer.init(jax.random.key(4)), other.init(jax.random.key(4))
     assert leaves_equal(state.params, other_state.params)
@@ -194,7 +197,8 @@ def test_compacted_update_equals_the_dense_update(monkeypatch: pytest.MonkeyPatc
 
 
 def test_polyak_freeze_rule_follows_the_mean_score() -> None:
-    trainer = make_learner(tiny_config().learner)
+    config = tiny_config().learner
+    trainer = make_learner(config, config.make_env())
     state = trainer.init(jax.random.key(0))
     new_state, metrics = trainer.update_chunk(state)
     frozen = np.asarray(metrics["opponent/frozen"]) == 1.0
@@ -230,15 +234,12 @@ def test_variants_trace(overrides: dict) -> None:
 
 
 def test_squashed_entropy_bonus_is_the_action_entropy_estimate() -> None:
-    gaussian = make_learner(tiny_config(**{"games_per_iteration": 16}).learner)
-    squashed = make_learner(
-        tiny_config(
-            **{
-                "games_per_iteration": 16,
-                "ppo.entropy_estimator": "squashed",
-            }
-        ).learner
-    )
+    gaussian_config = tiny_config(**{"games_per_iteration": 16}).learner
+    gaussian = make_learner(gaussian_config, gaussian_config.make_env())
+    squashed_config = tiny_config(
+        **{"games_per_iteration": 16, "ppo.entropy_estimator": "squashed"}
+    ).learner
+    squashed = make_learner(squashed_config, squashed_config.make_env())
     state = gaussian.init(jax.random.key(0))
     data = jax.jit(gaussian.collect)(state, jax.random.key(1))
     learned = {
@@ -259,7 +260,8 @@ def test_league_opponents_run() -> None:
     overrides: dict[str, Any] = {
         "opponent.kind": "league", "opponent.league_every": 2, "opponent.league_capacity": 3
     }
-    league = make_learner(tiny_config(**overrides).learner)
+    league_config = tiny_config(**overrides).learner
+    league = make_learner(league_config, league_config.make_env())
     state = league.init(jax.random.key(0))
     assert state.opponent.league is not None and int(state.opponent.league.size) == 1
     state, metrics = league.update_chunk(state)  # iterations 1, 2: a snapshot joins after 2
@@ -283,7 +285,8 @@ def test_league_opponents_run() -> None:
 
 @pytest.mark.slow
 def test_self_play_copies_the_learner() -> None:
-    self_play = make_learner(tiny_config(**{"opponent.kind": "self"}).learner)
+    self_config = tiny_config(**{"opponent.kind": "self"}).learner
+    self_play = make_learner(self_config, self_config.make_env())
     state = self_play.init(jax.random.key(0))
     state, _ = self_play.update_chunk(state)
     assert state.opponent.polyak is not None
@@ -469,7 +472,9 @@ def test_a_run_starts_from_another_team_sizes_networks(tmp_path: Path) -> None:
     source_config = tiny_config(
         **{"env.players_per_team": 2, "ppo.minibatch_size": 32}
     )
-    source_state = make_learner(source_config.learner).init(jax.random.key(7))
+    source_state = make_learner(
+        source_config.learner, source_config.learner.make_env()
+    ).init(jax.random.key(7))
     source = source_state.params
     with Checkpointer(tmp_path / "source" / CHECKPOINT_DIR) as checkpointer:
         checkpointer.save(0, source_state, source_config.to_dict(), {"iteration": 0})
@@ -477,9 +482,10 @@ def test_a_run_starts_from_another_team_sizes_networks(tmp_path: Path) -> None:
     config = tiny_config(tmp_path / "run", **{
         "run.init_from": str(tmp_path / "source"), "run.iterations": 2, "run.eval_every": 0,
     })
-    fresh = make_learner(config.learner).init(jax.random.key(0))
+    trainer = make_learner(config.learner, config.learner.make_env())
+    fresh = trainer.init(jax.random.key(0))
     assert not leaves_equal(fresh.params, source)  # the seeds differ: a real test
-    started = make_learner(config.learner).init(jax.random.key(0), resume_module.load_start_params(
+    started = trainer.init(jax.random.key(0), resume_module.load_start_params(
         config.run.init_from, config)[1])
     assert leaves_equal(started.params, source)
     assert leaves_equal(started.opponent.polyak.params, source.policy)
@@ -580,7 +586,8 @@ LEARNING_ITERATIONS = 40
 
 
 def test_short_run_learns_to_beat_the_random_team() -> None:
-    trainer = make_learner(tiny_config().learner)
+    config = tiny_config().learner
+    trainer = make_learner(config, config.make_env())
     state = trainer.init(jax.random.key(0))
     eval_key = jax.random.key(123)
     before = evaluate(trainer, state, eval_key)["eval/random/outcome"]

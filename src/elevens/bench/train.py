@@ -184,7 +184,7 @@ def bench_train(
             "ppo.minibatch_size": minibatch,
         },
     )
-    trainer = make_learner(config.learner, devices=devices)
+    trainer = make_learner(config.learner, config.learner.make_env(), devices=devices)
     state = trainer.init(jax.random.key(0))
 
     def full() -> Any:

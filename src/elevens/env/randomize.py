@@ -62,6 +62,10 @@ class Randomize:
     observation_noise: tuple[float, float] = (0.0, 1.0)
     """Std of the error on where a player sees each object, metres per axis (SPEC.md 0)."""
 
+    def __post_init__(self) -> None:
+        # Checked when built (a flag, an override, a saved config), as EnvParams is.
+        self.check()
+
     def ranges(self) -> dict[str, tuple[float, float]]:
         """``{field: (low, high)}`` in ``RANDOMIZED`` order."""
         return {name: getattr(self, name) for name in RANDOMIZED}

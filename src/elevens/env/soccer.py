@@ -89,13 +89,30 @@ class Soccer:
     together ends together; ``step`` does not reset by itself after ``done``.
     """
 
+    actions: int = 2
+    """Action values a player gives: (move, rot)."""
+
     def __init__(self, players_per_team: int = 11):
         EnvParams(players_per_team=players_per_team)  # validates
         self.players_per_team = players_per_team
 
+    # A game is its class and its settings: two built alike are equal, so what is cached on a
+    # game (a learner, a compiled program) is found again with another one built the same way.
+    def __eq__(self, other: object) -> bool:
+        return type(other) is type(self) and vars(other) == vars(self)
+
+    def __hash__(self) -> int:
+        return hash((type(self), *sorted(vars(self).items())))
+
     @property
     def num_players(self) -> int:
         return 2 * self.players_per_team
+
+    @property
+    def scripted_players(self) -> tuple[int, ...]:
+        """Players (indices within a team) a routine of the game plays instead of the policy:
+        their sampled actions are never played, so they leave PPO's policy terms."""
+        return ()
 
     def default_params(self, **overrides: Any) -> EnvParams:
         return EnvParams(players_per_team=self.players_per_team, **overrides)

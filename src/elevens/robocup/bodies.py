@@ -570,6 +570,8 @@ class RcssSoccer(Soccer):
     ``State.held_observation``.
     """
 
+    actions: int = ACTION_SIZE
+
     def __init__(
         self,
         players_per_team: int = 11,
@@ -589,6 +591,11 @@ class RcssSoccer(Soccer):
             )
         self.body = body
         self.see_period = see_period
+
+    @property
+    def scripted_players(self) -> tuple[int, ...]:
+        """With ``goalie`` the routine plays each team's player 0 (``goalie_guard``)."""
+        return (0,) if self.goalie else ()
 
     def reset(self, key: jax.Array, params: EnvParams) -> tuple[State, Observation]:
         state, obs = super().reset(key, params)

@@ -63,11 +63,7 @@ class RcssEnvConfig(EnvConfig):
 
     @property
     def actions(self) -> int:
-        return ACTION_SIZE
-
-    @property
-    def scripted_players(self) -> tuple[int, ...]:
-        return (0,) if self.goalie else ()
+        return self.BODIES.actions
 
     def check(self) -> None:
         _require(

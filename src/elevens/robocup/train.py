@@ -254,7 +254,9 @@ def train_robocup(
     config.validate()
     servers = ServerGames(config, env_factory or _default_env_factory(config))
     host = HostGames(
-        make_learner=lambda learner: make_learner(learner, devices=1, external_games=True),
+        make_learner=lambda learner, env: make_learner(
+            learner, env, devices=1, external_games=True
+        ),
         open=servers.open,
     )
     result = train(config.train_config(), resume=resume, progress=progress, host=host)

@@ -36,6 +36,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from elevens.env.params import EnvParams
+from elevens.env.soccer import Soccer
 from elevens.runs.errors import RunRefusedError
 from elevens.runs.layout import RunLayout
 from elevens.runs.memory import check_fits, rollout_bytes
@@ -94,8 +95,9 @@ class HostGames:
     state's key split in four, ``collect(state, rollout key)``, the learner's jitted
     ``improve``."""
 
-    make_learner: Callable[[LearnerConfig], Learner]
-    """Builds the run's learner (one game size: a mix of sizes is the simulator's)."""
+    make_learner: Callable[[LearnerConfig, Soccer], Learner]
+    """Builds the run's learner from its config and game (one game size: a mix of sizes is
+    the simulator's)."""
     open: Callable[[Learner], AbstractContextManager[Collect]]
     """Entered once the run directory is accepted and the untrained networks evaluated (start
     the servers there), left when the iterations end, also on an error or Ctrl-C."""
@@ -252,11 +254,13 @@ def open_run(
         start = None
         if config.run.init_from and latest is None:
             _, start = load_start_params(config.run.init_from, config)
-        learners = {
-            game: make_learner(learner, team_on_field, devices=config.run.devices)
-            if host is None else host.make_learner(learner)
-            for game, learner in game_configs(config.learner).items()
-        }
+        learners: dict[str, Learner] = {}
+        for game, learner in game_configs(config.learner).items():
+            env = learner.make_env()
+            learners[game] = (
+                make_learner(learner, env, team_on_field, devices=config.run.devices)
+                if host is None else host.make_learner(learner, env)
+            )
         fresh = learners[config.learner.env.scenario].init(jax.random.key(config.run.seed), start)
         resumed = Resumed(state=fresh)
         if latest is not None:

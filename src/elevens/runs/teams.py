@@ -161,7 +161,7 @@ def load_checkpoint_team(
       ``learner.network`` builds the policy (``NetworkConfig.policy()``) and
       ``learner.env.game.players_per_team`` is the team size it trained with;
     * the saved state is either the trainer's ``TrainState`` (restored against
-      ``train_state_shape(config.learner)``; the policy is ``state.params.policy``),
+      ``train_state_shape(config.learner, ...)``; the policy is ``state.params.policy``),
       or the policy's own variables ``{"params": ...}`` as ``AttentionPolicy.init`` returns them.
 
     Raises FileNotFoundError (no such path or no checkpoint), ``CheckpointError`` (corrupt, or a
@@ -210,7 +210,7 @@ def _train_state_shape(config: Any) -> Any:
     not depend on the devices a run used, so one device serves any checkpoint."""
     from elevens.train.learner import train_state_shape
 
-    return train_state_shape(config.learner, devices=1)
+    return train_state_shape(config.learner, config.learner.make_env(), devices=1)
 
 
 def _restore_train_state(checkpointer: Any, step: int, config: Any) -> Any:

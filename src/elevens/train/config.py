@@ -2,9 +2,9 @@
 
 A run's config has two parts. ``LearnerConfig`` is everything that is compiled into the learner
 (the game, the networks, PPO, the opponent, games per iteration and K): ``make_learner`` takes
-it alone, so nothing of the host loop can change what is computed. ``RunConfig`` is the host
-loop (length, evaluation, checkpoints, seed, devices, run directory). ``TrainConfig`` holds both
-and the preset's name.
+it and the game built from it alone, so nothing of the host loop can change what is computed.
+``RunConfig`` is the host loop (length, evaluation, checkpoints, seed, devices, run directory).
+``TrainConfig`` holds both and the preset's name.
 
 A config is built from a named preset plus overrides named as the flags are
 (``make_config("2v2", **{"ppo.epochs": 3, "games_per_iteration": 32, "run.iterations": 10})``),
@@ -121,14 +121,9 @@ class EnvConfig:
 
     @property
     def actions(self) -> int:
-        """Action values a player gives in this game: 2, the simulator's (move, rot)."""
-        return 2
-
-    @property
-    def scripted_players(self) -> tuple[int, ...]:
-        """Players (indices within a team) a routine of the game plays instead of the policy:
-        their sampled actions are never played, so they leave PPO's policy terms."""
-        return ()
+        """Action values a player gives in this game (its env's ``actions``): 2, the
+        simulator's (move, rot)."""
+        return Soccer.actions
 
     def check(self) -> None:
         """The checks of this game's own fields (the subclasses' extra ones); raises
@@ -264,8 +259,9 @@ class OpponentConfig:
 
 @dataclasses.dataclass(frozen=True)
 class LearnerConfig:
-    """Everything compiled into the learner (``make_learner`` takes this alone): the game, the
-    networks, PPO, the opponent, and how many games and iterations one compiled call plays."""
+    """Everything compiled into the learner (``make_learner`` takes this and the game built
+    from it, ``make_env``): the game, the networks, PPO, the opponent, and how many games and
+    iterations one compiled call plays."""
 
     env: Annotated[EnvConfig, _SHORT] = EnvConfig()
     """The game."""
@@ -307,6 +303,12 @@ class LearnerConfig:
         self. Pure Python: nothing is traced or compiled."""
         validate_learner(self)
         return self
+
+    def make_env(self) -> Soccer:
+        """The game to train in (``make_learner(config, config.make_env())``): the game's own
+        fields checked (``EnvConfig.check``), then ``env.make_env`` at this config's team size."""
+        self.env.check()
+        return self.env.make_env(self.players_per_team)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -839,6 +841,13 @@ def _check_team_actions(flag: str, specs: Any, learner: LearnerConfig) -> None:
 
 def validate_learner(learner: LearnerConfig) -> None:
     """Check every field of ``learner``; raise ``ValueError`` naming the first bad one."""
+    validate_training(learner)
+    learner.env.check()
+
+
+def validate_training(learner: LearnerConfig) -> None:
+    """Check the fields a learner reads: all of ``learner``'s but its game's own, which only
+    building the game reads (``EnvConfig.check``, ``LearnerConfig.make_env``)."""
     _require(isinstance(learner, LearnerConfig), f"expected a LearnerConfig, got {type(learner)}")
     _validate_env(learner.env)
     _validate_network(learner.network)
@@ -872,13 +881,12 @@ def _validate_env(env: EnvConfig) -> None:
         isinstance(env.randomize, Randomize),
         f"env.randomize must be a Randomize, got {type(env.randomize).__name__}",
     )
-    env.randomize.check("env.randomize")
+    # A Randomize checks its ranges when built (a flag, an override, a saved config).
     _require(
         not env.randomize.enabled or env.physics == EnvConfig.PHYSICS,
         f"env.randomize.enabled=True is invalid with env.physics={env.physics!r}: only the "
         f"simulator's own game ({EnvConfig.PHYSICS!r}) draws its constants",
     )
-    env.check()
 
 
 def _players_of(scenario: str) -> int:

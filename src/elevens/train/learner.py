@@ -1,4 +1,4 @@
-"""The learner: ``make_learner(LearnerConfig)`` gives pure ``init`` and ``update_chunk``.
+"""The learner: ``make_learner(LearnerConfig, env)`` gives pure ``init`` and ``update_chunk``.
 
 One iteration (thesis Algorithm 4) compiles into one program, and this file reads in its order:
 
@@ -21,8 +21,10 @@ One iteration (thesis Algorithm 4) compiles into one program, and this file read
 
 ``improve`` is steps 2 to 5 on a rollout played anywhere: a run whose games are played outside
 XLA (an external server, through ``elevens.runs.loop``'s collect seam) improves with the same
-function. The game itself comes from the config: ``config.env.make_env`` (the simulator's own
-game, or one a package above the core registers with ``train.config.register_game``).
+function. The game is the caller's: ``make_learner`` trains in the env it is given (built once
+from the config, ``LearnerConfig.make_env``: the simulator's own game, or one a package above
+the core registers with ``train.config.register_game``) and reads from it what the game decides
+(its action size, the players its routines play), with no branch for any particular game.
 ``update_chunk`` runs K iterations as a ``lax.scan``; the host loop that drives it is
 ``elevens.runs``.
 """
@@ -55,7 +57,7 @@ from elevens.train.config import (
     LearnerConfig,
     opponent_mix,
     self_play_games,
-    validate_learner,
+    validate_training,
 )
 from elevens.train.opponents import OpponentState, OpponentStrategy
 from elevens.train.rollout import FixedOpponent, Rollout, rollout
@@ -120,6 +122,7 @@ class Setup:
     value_and_grad: Callable[[LearnerParams, ppo.UpdateBatch], Any]
     env_params: EnvParams
     env: Soccer
+    """The game, the caller's (``make_learner``)."""
     noisy: bool
     """The players see with noise (``Randomize.noisy``): the unroll draws it."""
 
@@ -297,8 +300,8 @@ def policy_played(setup: Setup, data: Rollout) -> jax.Array | None:
     policy played everything."""
     games, n, steps = setup.games, setup.players, data.transitions.reset.shape[-1]
     played = None
-    if setup.config.env.scripted_players:
-        by_policy = ~jnp.isin(jnp.arange(n), jnp.asarray(setup.config.env.scripted_players))
+    if setup.env.scripted_players:
+        by_policy = ~jnp.isin(jnp.arange(n), jnp.asarray(setup.env.scripted_players))
         played = jnp.broadcast_to(by_policy[None, :, None], (games, n, steps))
     if data.scripted is not None:
         by_routine = ~data.scripted.reshape(games, n, steps)
@@ -461,57 +464,82 @@ layer's, above this one)."""
 
 def make_learner(
     config: LearnerConfig,
+    env: Soccer,
     load_team: TeamLoader | None = None,
     *,
     devices: int = 0,
     external_games: bool = False,
 ) -> Learner:
-    """Build the pure functions of ``config`` (validated first: nothing compiles on a bad one)
-    on ``devices`` (``parallel.data_mesh``: 0 = all). The game is ``config.env``'s
-    (``EnvConfig.make_env``). ``load_team`` loads the fixed teams of ``opponent.mix``; a config
-    with such teams needs it. ``external_games``: the caller plays the games outside the
-    compiled unroll and calls only ``improve``, so the policy may give any action size the
-    caller's game takes (``network.actions``), not only the config's game's.
+    """Build the pure functions of ``config`` training in the game ``env`` (the caller's, built
+    once from the config: ``config.make_env()``) on ``devices`` (``parallel.data_mesh``: 0 =
+    all). Both are checked first, the config's fields and that ``env`` is its game's size and
+    takes its policy's action: nothing compiles on a bad one. ``load_team`` loads the fixed
+    teams of ``opponent.mix``; a config with such teams needs it. ``external_games``: the
+    caller plays the games outside the compiled unroll and calls only ``improve``, so the
+    policy may give any action size the caller's game takes (``network.actions``), not only
+    ``env``'s.
 
-    They are cached on their arguments: building the same learner again in one process (a
-    resume, a longer run, another run directory) reuses the compiled chunk.
+    They are cached on their arguments (a game is equal to another built alike): building the
+    same learner again in one process (a resume, a longer run, another run directory) reuses
+    the compiled chunk.
     """
-    validate_learner(config)
-    if config.network.actions != config.env.actions and not external_games:
-        raise ValueError(
-            f"network.actions={config.network.actions}: the game env.physics="
-            f"{config.env.physics!r} takes {config.env.actions} action values; a policy of "
-            "another size plays games outside the simulator (external_games)"
-        )
+    validate_training(config)
+    _check_game(config, env, external_games)
     if load_team is None and len(opponent_mix(config)) > 1:
         raise ValueError(
             f"opponent.mix={config.opponent.mix!r} names fixed teams: pass load_team "
             "(elevens.runs.teams.team_on_field) to make_learner, or train with elevens.runs.train"
         )
-    return _build_learner(config, load_team, devices)
+    return _build_learner(config, env, load_team, devices)
 
 
-def train_state_shape(config: LearnerConfig, devices: int = 0) -> TrainState:
-    """The TrainState of ``config`` as shapes (``jax.eval_shape``), nothing computed or loaded:
-    the target a checkpoint restores into."""
-    setup = make_setup(config.validate(), devices=devices)
+def train_state_shape(config: LearnerConfig, env: Soccer, devices: int = 0) -> TrainState:
+    """The TrainState of ``config`` in the game ``env`` as shapes (``jax.eval_shape``), nothing
+    computed or loaded: the target a checkpoint restores into."""
+    validate_training(config)
+    _check_game(config, env, external_games=True)  # a server-trained run restores too
+    setup = make_setup(config, env, devices=devices)
     return cast(TrainState, jax.eval_shape(functools.partial(init_state, setup), jax.random.key(0)))
 
 
+def _check_game(config: LearnerConfig, env: Soccer, external_games: bool) -> None:
+    """``env`` is a game of ``config``'s team size whose action the policy gives (unless the
+    games are played outside the simulator)."""
+    if not isinstance(env, Soccer):
+        raise ValueError(
+            f"env={env!r} is not a game: make_learner takes the game to train in, a Soccer "
+            "(config.make_env())"
+        )
+    if env.players_per_team != config.players_per_team:
+        raise ValueError(
+            f"env plays {env.players_per_team} a side, but the config's game has "
+            f"env.players_per_team={config.players_per_team}: build the game from the config "
+            "(config.make_env())"
+        )
+    if config.network.actions != env.actions and not external_games:
+        raise ValueError(
+            f"network.actions={config.network.actions}: the game {type(env).__name__} "
+            f"(env.physics={config.env.physics!r}) takes {env.actions} action values; a policy "
+            "of another size plays games outside the simulator (external_games)"
+        )
+
+
 @functools.lru_cache(maxsize=8)
-def _build_learner(config: LearnerConfig, load_team: TeamLoader | None, devices: int) -> Learner:
+def _build_learner(
+    config: LearnerConfig, env: Soccer, load_team: TeamLoader | None, devices: int
+) -> Learner:
     # The iterations compile on the first update_chunk (cached with the setup: _scan_iterations);
     # the networks' init compiles on the first init (shared: _network_initializer).
-    return Learner(config=config, setup=make_setup(config, load_team, devices))
+    return Learner(config=config, setup=make_setup(config, env, load_team, devices))
 
 
 def make_setup(
-    config: LearnerConfig, load_team: TeamLoader | None = None, devices: int = 0
+    config: LearnerConfig, env: Soccer, load_team: TeamLoader | None = None, devices: int = 0
 ) -> Setup:
-    """The static parts of an iteration of ``config`` on ``devices`` (the fixed teams of
-    ``opponent.mix`` only with ``load_team``), built from the top layer down: what the config
-    says, the devices, the optimiser and the opponent, then the fixed teams, the networks and
-    the game."""
+    """The static parts of an iteration of ``config`` in the game ``env`` on ``devices`` (the
+    fixed teams of ``opponent.mix`` only with ``load_team``), built from the top layer down:
+    what the config says, the devices, the optimiser and the opponent, then the fixed teams
+    and the networks."""
     mix = opponent_mix(config)
     self_games = mix[0][1]
     mix_blocks = _mix_blocks(mix)
@@ -531,8 +559,7 @@ def make_setup(
         league_min_games=o.league_min_games, index_count=_index_count(self_games),
     )
     fixed = (
-        _fixed_opponents(mix[1:], n, config.env.actions, env_params, load_team)
-        if load_team else ()
+        _fixed_opponents(mix[1:], n, env.actions, env_params, load_team) if load_team else ()
     )
     policy, critic = config.network.policy(), config.network.critic()
     value_and_grad = capacity.value_and_grad(
@@ -552,7 +579,7 @@ def make_setup(
         critic=critic,
         value_and_grad=value_and_grad,
         env_params=env_params,
-        env=config.env.make_env(n),
+        env=env,
         noisy=config.env.randomize.noisy(env_params),
     )
 
@@ -562,7 +589,7 @@ def init_state(setup: Setup, key: jax.Array, start: LearnerParams | None = None)
     --run.init-from) replaces the random networks, and the opponent starts as its policy."""
     policy_key, critic_key, run_key = jax.random.split(key, 3)
     if start is None:
-        initialize = _network_initializer(setup.policy, setup.critic, setup.players)
+        initialize = _network_initializer(setup.policy, setup.critic, setup.env)
         policy_params, critic_params = initialize(policy_key, critic_key)
         start = LearnerParams(policy=policy_params, critic=critic_params)
     return TrainState(
@@ -578,15 +605,14 @@ def init_state(setup: Setup, key: jax.Array, start: LearnerParams | None = None)
 
 @functools.lru_cache(maxsize=8)
 def _network_initializer(
-    policy: AttentionPolicy, critic: AttentionCritic, players_per_team: int
+    policy: AttentionPolicy, critic: AttentionCritic, env: Soccer
 ) -> Callable[[jax.Array, jax.Array], tuple[Params, Params]]:
     """Jitted ``(policy_key, critic_key) -> (policy params, critic params)``, one per networks
-    and team size: its compile is most of ``init``'s, and a sweep or a test suite builds many
+    and game: its compile is most of ``init``'s, and a sweep or a test suite builds many
     configs that differ only in PPO, opponent or run settings. Parameters depend on the input
     shapes only, so zeros stand in for the observation and the global state."""
-    n = players_per_team
-    env = Soccer(n)
-    env_params = EnvParams(players_per_team=n)
+    n = env.players_per_team
+    env_params = env.default_params()
 
     def inputs(key: jax.Array) -> tuple[Observation, GlobalState]:
         state, obs = env.reset(key, env_params)

@@ -61,6 +61,8 @@ class SkillSoccer(RcssSoccer):
     layout and its fallbacks in ``elevens.robocup.skills.decode``); the rest is
     ``RcssSoccer``'s, with tackles (``ball_pushes``)."""
 
+    actions: int = SKILL_ACTION_SIZE
+
     def default_params(self, **overrides: Any) -> EnvParams:
         return skills_field(self.players_per_team, **overrides)
 
@@ -156,10 +158,6 @@ class SkillsEnvConfig(RcssEnvConfig):
 
     PHYSICS: ClassVar[str] = "skills"
     BODIES: ClassVar[type[RcssSoccer]] = SkillSoccer
-
-    @property
-    def actions(self) -> int:
-        return SKILL_ACTION_SIZE
 
 
 def skills_config(preset: str, **overrides: Any) -> TrainConfig:

@@ -130,12 +130,16 @@ TINY = {
 
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A skills-2v2 run of one tiny iteration."""
-    from elevens.runs.loop import train
+    """A skills-2v2 run directory with one checkpoint: the tiny networks at their init (what
+    is tested is loading and deciding, not what was learned; no update compiles)."""
+    from elevens.train.checkpoint import Checkpointer
+    from elevens.train.learner import make_learner
 
     run_dir = tmp_path_factory.mktemp("skills-run")
-    result = train(skills_config("2v2", **{**TINY, "run.run_dir": str(run_dir)}), progress=False)
-    assert result.checkpoint is not None
+    config = skills_config("2v2", **{**TINY, "run.run_dir": str(run_dir)})
+    state = make_learner(config.learner, config.learner.make_env()).init(jax.random.key(3))
+    with Checkpointer(run_dir / "checkpoints") as checkpointer:
+        checkpointer.save(0, state, config.to_dict(), {"iteration": 0})
     return run_dir
 
 

@@ -32,7 +32,7 @@ from flax import struct
 
 from elevens.env.params import EnvParams
 from elevens.env.randomize import game_axis
-from elevens.env.soccer import Soccer, applied_actions
+from elevens.env.soccer import Soccer
 from elevens.env.state import Observation, State, StepInfo
 from elevens.nets.policy import AttentionPolicy
 from elevens.teams.base import TeamPolicy
@@ -302,7 +302,7 @@ def _step(
     )
     away_carry, away_actions, _ = away.act(carry.away_carry, away_obs, player_reset, keys.away)
     actions = place_sides(home_actions, away_actions, home_side).astype(jnp.float32)
-    actions = applied_actions(actions)
+    actions = env.applied(actions)  # each game's own ranges (the skill game's kind is 0..7)
     transition = jax.vmap(env.transition, in_axes=(0, 0, 0, axis))
     state, rewards, done, info = transition(keys.env, carry.state, actions, params)
     view = StepView(

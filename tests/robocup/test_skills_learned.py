@@ -12,7 +12,7 @@ import pytest
 
 import elevens.robocup  # noqa: F401 - registers the skill game and its teams
 from elevens.env.state import ENTITY_FEATURES, SELF_FEATURES
-from elevens.robocup.skills import check_skills_policy, skills_policy
+from elevens.robocup.skills import SKILLS, check_skills_policy, skills_policy
 from elevens.robocup.skills.decode import GO_TO, HOLD, MARK, PASS, SKILL_ACTION_SIZE
 from elevens.robocup.skills.game import SkillSoccer, skills_config
 from elevens.robocup.skills.learned import (
@@ -235,6 +235,58 @@ def test_the_decision_server_plays_a_trained_team_with_one_call_a_cycle(
         stats = server.stats()
     assert stats.batches == 3 and stats.defaults == 0 and stats.errors == 0
     assert decide.policy_calls == calls + 3
+
+
+def _ball_at_seven() -> Scene:
+    """Shirt 7 has the ball at its feet (in reach by the geometry too), play on."""
+    ours = Scene().ours.copy()
+    ours[6] = (-12.5, 4.0)
+    return Scene(ours=ours, ball=(-12.0, 4.0), kickable=7, cycle=30)
+
+
+def test_the_simulators_skills_naive_decides_as_the_runtimes_through_the_converter() -> None:
+    """skills_naive_sim (the simulator's team: the world model turned into its observation,
+    its action decoded as the game decodes it) plays what skills_naive plays on the world
+    model: the converter's path, both ways."""
+    from elevens.robocup.skills.naive import skills_naive_decisions
+
+    assert {"skills_naive", "skills_random", "skills_naive_sim"} <= set(SKILLS)
+    obs = observe(_states(_ball_at_seven()))
+    runtime = skills_naive_decisions(obs)
+    simulator = skills_policy("skills_naive_sim").decisions(obs)
+    assert simulator.kind.tolist() == runtime.kind.tolist()
+    assert simulator.index.tolist() == runtime.index.tolist()
+    assert runtime.kind[6] == Kind.PASS and runtime.kind[0] == Kind.GOALIE
+    going = runtime.kind == Kind.GO_TO
+    assert going.sum() >= 8
+    np.testing.assert_allclose(simulator.point[going], runtime.point[going], atol=1e-3)
+
+
+def test_skills_random_plays_every_open_play_kind_in_the_runtime() -> None:
+    """skills_random in the server runtime: uniform skill actions decoded as the game decodes
+    them; the goalie plays the proxy's, the others every open-play kind over a few cycles."""
+    decide = skills_policy("skills_random")
+    obs = observe(_states(_ball_at_seven()))
+    kinds: set[int] = set()
+    for _ in range(6):
+        decisions = decide.decisions(obs)
+        decisions.check(11)
+        assert decisions.kind[0] == Kind.GOALIE
+        kinds |= set(decisions.kind[1:].tolist())
+    # Without the ball the with-ball kinds intercept; shirt 7 has it and plays them.
+    assert kinds >= {Kind.INTERCEPT, Kind.GO_TO, Kind.MARK}
+    assert len(decide(_states(_ball_at_seven()))) == 11
+
+
+def test_the_simulators_teams_play_matches_through_the_proxy() -> None:
+    from elevens.robocup.match import SkillsTeam, parse_team
+
+    for name in ("skills_random", "skills_naive_sim"):
+        team = parse_team(name, None, "sim")
+        assert team == SkillsTeam(name, "sim")
+        command = team.command("127.0.0.1", 6000, 11, synch=True)
+        assert command[command.index("--skills") + 1] == name
+    check_skills_policy("skills_random")
 
 
 # ------------------------------------------------------------------ the commands

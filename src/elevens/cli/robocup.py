@@ -98,8 +98,9 @@ class RoboCupMatchArgs:
 
     team0: str | None = "naive"
     """Left team: naive, random, a shipped trained team, a checkpoint path or a skills team
-    (skills_naive, or a checkpoint of elevens train skills-2v2 / skills-11v11: elevens decides,
-    the skills proxy's players execute; docs/robocup_skills.md) (or use --team0-cmd)."""
+    (skills_naive, skills_random, skills_naive_sim, or a checkpoint of elevens train
+    skills-2v2 / skills-11v11: elevens decides, the skills proxy's players execute;
+    docs/robocup_skills.md) (or use --team0-cmd)."""
     team1: str | None = None
     """Right team, as --team0 (or use --team1-cmd)."""
     team0_cmd: str | None = None

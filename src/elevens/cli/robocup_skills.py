@@ -16,8 +16,9 @@ class RoboCupSkillsTeamArgs:
     until the game ends; then print the decision latency."""
 
     skills: str = "skills_naive"
-    """The skills team: skills_naive, or a trained skills team (a checkpoint of elevens train
-    skills-2v2 / skills-11v11, PATH@ITERATION, or a team exported from one)."""
+    """The skills team: skills_naive, skills_random, skills_naive_sim, or a trained skills team
+    (a checkpoint of elevens train skills-2v2 / skills-11v11, PATH@ITERATION, or a team
+    exported from one)."""
     sample: bool = False
     """A trained team samples its actions instead of playing their mode."""
     host: str = "127.0.0.1"

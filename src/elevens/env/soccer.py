@@ -155,6 +155,12 @@ class Soccer:
         state, rewards, done, info = self.transition(key, state, actions, params)
         return state, self.observe(state, params), rewards, done, info
 
+    def applied(self, actions: jax.Array) -> jax.Array:
+        """The actions f32[..., 2, n, A] as this game applies them, what a rollout passes on and
+        records: NaN counts as 0, the rest clipped to [-1, 1] (a game of other ranges says its
+        own)."""
+        return applied_actions(actions)
+
     def transition(
         self, key: jax.Array, state: State, actions: jax.Array, params: EnvParams
     ) -> tuple[State, jax.Array, jax.Array, StepInfo]:

@@ -20,13 +20,40 @@ cycle over Thrift. The modules:
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from elevens.robocup.skills.naive import skills_naive
 from elevens.robocup.skills.runtime import Decide
 
 __all__ = ["SKILLS", "check_skills_policy", "skills_policy"]
 
-#: The skills teams by name: each is a batched ``decide(states) -> actions``.
-SKILLS: dict[str, Decide] = {"skills_naive": skills_naive}
+
+def _simulator_team(name: str) -> Callable[[], Decide]:
+    """The simulator's handcrafted skills team ``name`` (``skills.team``) in the runtime, through
+    the converter a trained team plays through (``learned.LearnedSkills``); built on demand
+    (it compiles its policy call)."""
+
+    def build() -> Decide:
+        from elevens.robocup.skills.learned import LearnedSkills
+        from elevens.robocup.skills.team import SkillsNaiveTeam, SkillsRandomTeam
+
+        team = {"skills_random": SkillsRandomTeam, "skills_naive_sim": SkillsNaiveTeam}[name]()
+        decide = LearnedSkills(team, None, name=name)
+        decide.warm_up()
+        return decide
+
+    return build
+
+
+#: The skills teams by name, each a builder of a batched ``decide(states) -> actions``:
+#: ``skills_naive`` decides on librcsc's world model directly; ``skills_random`` (uniform skill
+#: actions) and ``skills_naive_sim`` (the simulator's ``skills_naive``, on the world model
+#: turned into the skill game's observation and back) play as a trained team does.
+SKILLS: dict[str, Callable[[], Decide]] = {
+    "skills_naive": lambda: skills_naive,
+    "skills_random": _simulator_team("skills_random"),
+    "skills_naive_sim": _simulator_team("skills_naive_sim"),
+}
 
 
 def check_skills_policy(spec: str) -> None:
@@ -45,7 +72,7 @@ def skills_policy(spec: str, *, deterministic: bool = True) -> Decide:
     the mode of its action unless ``deterministic`` is False. A spec that is neither is a
     ValueError naming what is allowed."""
     if spec in SKILLS:
-        return SKILLS[spec]
+        return SKILLS[spec]()
     from elevens.robocup.skills.learned import load_learned_skills
 
     return load_learned_skills(spec, deterministic=deterministic)

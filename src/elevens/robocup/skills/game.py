@@ -78,6 +78,15 @@ class SkillSoccer(RcssSoccer):
         if not jnp.issubdtype(actions.dtype, jnp.floating):
             raise ValueError(f"actions have dtype {actions.dtype}, expected a float dtype")
 
+    def applied(self, actions: jax.Array) -> jax.Array:
+        """The actions f32[..., 2, n, 4] as the decode reads them: NaN counts as 0, the kind
+        clipped to 0..7, the pointer to 0..2n-1, (x, y) to [-1, 1] (not all to [-1, 1], which
+        would leave only SHOOT and PASS)."""
+        actions = jnp.where(jnp.isnan(actions), 0.0, actions)
+        top = jnp.array([OPEN_KINDS - 1, 2 * self.players_per_team - 1, 1.0, 1.0], actions.dtype)
+        bottom = jnp.array([0.0, 0.0, -1.0, -1.0], actions.dtype)
+        return jnp.clip(actions, bottom, top)
+
     def context(self, state: State, params: EnvParams) -> SkillContext:
         """Every player's decode context, each in its team's frame, from the true state."""
         n = self.players_per_team

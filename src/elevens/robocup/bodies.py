@@ -412,6 +412,16 @@ def push(
     return jnp.where(pushed, moved, velocity)
 
 
+def materialised(*arrays: jax.Array) -> tuple[jax.Array, ...]:
+    """The same arrays (one shape), computed once into memory: XLA's CPU fusion otherwise
+    recomputes an array's whole computation inside every consumer that reads it many times
+    (pairs of players). A reduction is never fused into its consumers, so a max against -inf
+    pins them (optimization_barrier does not survive the CPU pipeline)."""
+    stacked = jnp.stack(arrays)
+    pinned = jnp.max(jnp.stack([stacked, jnp.full_like(stacked, -jnp.inf)]), axis=0)
+    return tuple(pinned)
+
+
 def collide(
     positions: jax.Array,
     velocities: jax.Array,
@@ -427,6 +437,8 @@ def collide(
     still overlaps, at most ten times). positions/velocities f32[m, 2], ball f32[2] -> the
     same four, moved."""
     eps = 1e-5
+    # Every pair reads the moved bodies: computed once, not inside each pair's fusion.
+    positions, velocities = materialised(positions, velocities)
 
     def apart(a: jax.Array, b: jax.Array, reach: float) -> tuple[jax.Array, jax.Array]:
         offset = a - b

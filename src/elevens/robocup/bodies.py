@@ -456,9 +456,12 @@ def collide(
     pair_out, pair_hit = apart(positions[:, None, :], positions[None, :, :],
                                2.0 * params.player_size)
     pair_hit = pair_hit & ~jnp.eye(positions.shape[0], dtype=bool)
-    total = jnp.where(ball_hit[:, None], players_out, 0.0) + jnp.sum(
-        jnp.where(pair_hit[..., None], pair_out, 0.0), axis=1
-    )
+    # Each player's pairs added up one by one (a sum over them is a library call on XLA's
+    # CPU backend, several times dearer).
+    pairs = jnp.zeros_like(positions)
+    for other in range(positions.shape[0]):
+        pairs = pairs + jnp.where(pair_hit[:, other, None], pair_out[:, other], 0.0)
+    total = jnp.where(ball_hit[:, None], players_out, 0.0) + pairs
     count = ball_hit.astype(jnp.float32) + jnp.sum(pair_hit, axis=1)
     collided = count > 0
     positions = jnp.where(collided[:, None], total / jnp.maximum(count, 1.0)[:, None], positions)

@@ -355,7 +355,10 @@ def commands(choice: d.SkillChoice, body: Bodies, positions: jax.Array, sign: ja
         dribbles[:, None], body.position + DRIBBLE_LENGTH * direction, world_point))
     kick_speed = jnp.where(passes, pass_speed, jnp.where(dribbles, DRIBBLE_SPEED, SHOOT_SPEED))
     kick_turns, kick_vector = _kick_plan(body, kick_target, kick_speed, dribbles, b)
-    hold_turns, hold_vector = _hold_plan(body, other, to_goal, b)
+    # HOLD's plan, the dearest, once into memory: else each of the picked command's columns
+    # below works it out again.
+    hold_turns, hold_vector = _pinned(*_hold_plan(body, other, to_goal, b))
+    hold_turns = hold_turns > 0.0
     # INTERCEPT (and TACKLE without a chance) settles a ball in reach, else runs to it; GO_TO
     # and MARK run to their points: one run, to the kind's point.
     leaving, trap = _settle_plan(body, to_goal, b)
@@ -364,9 +367,10 @@ def commands(choice: d.SkillChoice, body: Bodies, positions: jax.Array, sign: ja
     marked = target + MARK_DISTANCE * _unit(our_goal - target)
     run_point = jnp.where((kind == d.GO_TO)[:, None], world_point,
                           jnp.where((kind == d.MARK)[:, None], marked, reach_point))
-    threshold = [jnp.where(kind == d.GO_TO, go_to, jnp.where(kind == d.MARK, mark, chase))
-                 for go_to, mark, chase in ((1.0, 0.5, 0.3), (1.0**2, 0.5**2, 0.3**2))]
-    run_kind, run_vector, dash_power = _run_plan(body, run_point, *threshold, b)
+    threshold, threshold2 = (
+        jnp.where(kind == d.GO_TO, go_to, jnp.where(kind == d.MARK, mark, chase))
+        for go_to, mark, chase in ((1.0, 0.5, 0.3), (1.0**2, 0.5**2, 0.3**2)))
+    run_kind, run_vector, dash_power = _run_plan(body, run_point, threshold, threshold2, b)
     chases = (kind == d.INTERCEPT) | (
         (kind == d.TACKLE) & ~(tackle_probability(body.position, body.heading, body.ball,
                                                   body.facing) > 0.0))

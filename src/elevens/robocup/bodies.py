@@ -412,6 +412,16 @@ def push(
     return jnp.where(pushed, moved, velocity)
 
 
+def materialised(*arrays: jax.Array) -> tuple[jax.Array, ...]:
+    """The same arrays (one shape), computed once into memory: XLA's CPU fusion otherwise
+    recomputes an array's whole computation inside every consumer that reads it many times
+    (pairs of players). A reduction is never fused into its consumers, so a max against -inf
+    pins them (optimization_barrier does not survive the CPU pipeline)."""
+    stacked = jnp.stack(arrays)
+    pinned = jnp.max(jnp.stack([stacked, jnp.full_like(stacked, -jnp.inf)]), axis=0)
+    return tuple(pinned)
+
+
 def collide(
     positions: jax.Array,
     velocities: jax.Array,
@@ -427,6 +437,8 @@ def collide(
     still overlaps, at most ten times). positions/velocities f32[m, 2], ball f32[2] -> the
     same four, moved."""
     eps = 1e-5
+    # Every pair reads the moved bodies: computed once, not inside each pair's fusion.
+    positions, velocities = materialised(positions, velocities)
 
     def apart(a: jax.Array, b: jax.Array, reach: float) -> tuple[jax.Array, jax.Array]:
         offset = a - b
@@ -444,9 +456,12 @@ def collide(
     pair_out, pair_hit = apart(positions[:, None, :], positions[None, :, :],
                                2.0 * params.player_size)
     pair_hit = pair_hit & ~jnp.eye(positions.shape[0], dtype=bool)
-    total = jnp.where(ball_hit[:, None], players_out, 0.0) + jnp.sum(
-        jnp.where(pair_hit[..., None], pair_out, 0.0), axis=1
-    )
+    # Each player's pairs added up one by one (a sum over them is a library call on XLA's
+    # CPU backend, several times dearer).
+    pairs = jnp.zeros_like(positions)
+    for other in range(positions.shape[0]):
+        pairs = pairs + jnp.where(pair_hit[:, other, None], pair_out[:, other], 0.0)
+    total = jnp.where(ball_hit[:, None], players_out, 0.0) + pairs
     count = ball_hit.astype(jnp.float32) + jnp.sum(pair_hit, axis=1)
     collided = count > 0
     positions = jnp.where(collided[:, None], total / jnp.maximum(count, 1.0)[:, None], positions)

@@ -25,6 +25,7 @@ World frame (metres, radians counter-clockwise); command arguments are the serve
 
 from __future__ import annotations
 
+import functools
 from typing import Any, NamedTuple
 
 import jax
@@ -40,6 +41,7 @@ from elevens.robocup.bodies import (
     Commands,
     RcssParams,
     kick_rate_factor,
+    materialised,
 )
 from elevens.robocup.skills import decode as d
 
@@ -71,7 +73,9 @@ HOLD_RADIUS = 0.75
 DRIBBLE_SPEED = 0.8
 DRIBBLE_LENGTH = 8.0
 MARK_DISTANCE = 1.5
-TACKLE_DIST, TACKLE_BACK_DIST, TACKLE_WIDTH, TACKLE_EXPONENT = 2.0, 0.1, 1.25, 6.0
+TACKLE_DIST, TACKLE_BACK_DIST, TACKLE_WIDTH = 2.0, 0.1, 1.25
+TACKLE_EXPONENT = 6
+"""An integer: the power is multiplications (a float power is dear on a CPU)."""
 TACKLE_POWER_RATE, MAX_TACKLE_POWER = 0.027, 100.0
 
 
@@ -107,8 +111,14 @@ def _between(facing: jax.Array, v: jax.Array) -> jax.Array:
     return jnp.arctan2(cross, dot)
 
 
+def dot(a: jax.Array, b: jax.Array) -> jax.Array:
+    """f32[...]: the dot products of 2-vectors f32[..., 2], written out: XLA's CPU backend
+    runs a sum over a last axis of 2 as a library call many times slower."""
+    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1]
+
+
 def _norm(v: jax.Array) -> jax.Array:
-    return jnp.sqrt(jnp.sum(v * v, axis=-1))
+    return jnp.sqrt(dot(v, v))
 
 
 def _unit(v: jax.Array) -> jax.Array:
@@ -120,41 +130,23 @@ def _clockwise(body: Bodies, v: jax.Array) -> jax.Array:
     return -jnp.degrees(_between(body.facing, v))
 
 
-def _command(kind: Any, m: int, **values: Any) -> Commands:
-    zeros = jnp.zeros(m)
-    fields = {name: jnp.broadcast_to(jnp.asarray(values.get(name, zeros), jnp.float32), (m,))
-              for name in Commands._fields if name != "kind"}
-    return Commands(kind=jnp.broadcast_to(jnp.asarray(kind, jnp.int32), (m,)), **fields)
-
-
-def _where(mask: jax.Array, a: Commands, b: Commands) -> Commands:
-    return Commands(*(jnp.where(mask, x, y) for x, y in zip(a, b, strict=True)))
-
-
-def _turn_to(body: Bodies, v: jax.Array, b: RcssParams) -> Commands:
-    """Turn the body to the vector ``v``, the moment raised against the turn's inertia."""
-    moment = _clockwise(body, v) * (1.0 + b.inertia_moment * body.speed)
-    return _command(TURN, v.shape[0], turn_moment=jnp.clip(moment, -180.0, 180.0))
-
-
-def go_to(body: Bodies, target: jax.Array, threshold: float, face: jax.Array,
-          b: RcssParams = DEFAULT) -> Commands:
-    """Turn towards ``target`` f32[m, 2] and dash at it, braking so as to stop on it; within
-    ``threshold`` metres, turn to face the point ``face``."""
-    m = target.shape[0]
+def _run_plan(body: Bodies, target: jax.Array, threshold: jax.Array, threshold2: jax.Array,
+              b: RcssParams) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """GO_TO's command to ``target`` f32[m, 2]: turn towards it and dash at it, braking so as
+    to stop on it; within ``threshold`` f32[m] metres (``threshold2`` its square), turn to face
+    the ball. (kind i32[m]:
+    TURN or DASH, the vector f32[m, 2] it turns to or dashes along, the dash's power f32[m])."""
     ahead = body.position + body.velocity  # where the player drifts to without a command
     offset = target - ahead
     distance = _norm(offset)
     relative = _between(body.facing, offset)
     cone = jnp.maximum(np.radians(12.0), jnp.arctan2(threshold, distance))
     near = target - body.position
-    arrived = jnp.sum(near * near, axis=-1) <= threshold**2
+    arrived = dot(near, near) <= threshold2
     power = jnp.clip(distance / b.dash_power_rate, 0.0, b.max_power)
-    dash = _command(DASH, m, dash_power=power, dash_direction=-jnp.degrees(relative))
-    moment = -jnp.degrees(relative) * (1.0 + b.inertia_moment * body.speed)
-    turn = _command(TURN, m, turn_moment=jnp.clip(moment, -180.0, 180.0))
-    facing = _turn_to(body, face - body.position, b)
-    return _where(arrived, facing, _where(jnp.abs(relative) > cone, turn, dash))
+    turns = arrived | (jnp.abs(relative) > cone)
+    vector = jnp.where(arrived[:, None], body.ball - body.position, offset)
+    return jnp.where(turns, TURN, DASH), vector, power
 
 
 def reach_steps(position: jax.Array, heading: jax.Array, ball: jax.Array,
@@ -170,7 +162,7 @@ def reach_steps(position: jax.Array, heading: jax.Array, ball: jax.Array,
     course = ball[:, None, :] + travelled[None, :, None] * ball_velocity[:, None, :]  # [m, T, 2]
     offset = course - position[:, None, :]
     # Squared distances and cosines: no square root or angle per course point (dear on a CPU).
-    gap2 = jnp.sum(offset * offset, axis=-1)
+    gap2 = dot(offset, offset)
     if facing is None:
         facing = jnp.stack([jnp.cos(heading), jnp.sin(heading)], axis=-1)
     along = offset[..., 0] * facing[:, None, 0] + offset[..., 1] * facing[:, None, 1]
@@ -180,72 +172,59 @@ def reach_steps(position: jax.Array, heading: jax.Array, ball: jax.Array,
     # ceil((gap - 0.8 reach) / RUN_SPEED) <= t - turns, without the root:
     runs = t[None, :] - turns
     ok = (runs >= 0.0) & (gap2 <= (runs * RUN_SPEED + 0.8 * b.kickable_distance) ** 2)
-    found = jnp.any(ok, axis=1)
-    first = jnp.where(found, jnp.argmax(ok, axis=1), HORIZON)
-    pick = (first[:, None] == np.arange(HORIZON + 1)[None, :])[..., None]
-    point = jnp.sum(jnp.where(pick, course, 0.0), axis=1)
-    return jnp.where(found, first, HORIZON + 1).astype(jnp.int32), point
+    # The first cycle found by an integer minimum and its point by a gather (an argmax and a
+    # one-hot sum over the course are several times dearer on XLA's CPU backend).
+    first = jnp.min(jnp.where(ok, np.arange(HORIZON + 1), HORIZON + 1), axis=1)
+    at = jnp.concatenate([jnp.asarray(travelled), jnp.asarray(travelled)[-1:]])[first]
+    return first.astype(jnp.int32), ball + at[:, None] * ball_velocity
 
 
-def intercept(body: Bodies, goal: jax.Array, decay: float, b: RcssParams = DEFAULT) -> Commands:
-    """Run to where the ball can first be met. With the ball in reach: trap it (a kick that
-    leaves it in front of the player, towards ``goal``) when it would roll out of reach, else
-    face ``goal``."""
-    _, point = reach_steps(body.position, body.heading, body.ball, body.ball_velocity, decay, b,
-                           body.facing)
-    run = go_to(body, point, 0.3, body.ball, b)
+def _settle_plan(body: Bodies, goal_offset: jax.Array,
+                 b: RcssParams) -> tuple[jax.Array, jax.Array]:
+    """INTERCEPT with the ball in reach: trap it (a kick that leaves it in front of the player,
+    towards the goal ``goal_offset`` f32[m, 2] away) when it would roll out of reach, else face
+    the goal. (traps bool[m], the trap's acceleration f32[m, 2])."""
     ahead = body.position + body.velocity
     leaving = _norm(body.ball + body.ball_velocity - ahead) > b.kickable_distance - 0.25
-    to_goal = goal - body.position
-    spot = ahead + PLACE * _unit(to_goal)
-    trap = _kick_by(body, spot - body.ball - body.ball_velocity, b)
-    settle = _where(leaving, trap, _turn_to(body, to_goal, b))
-    return _where(_in_reach(body, b), settle, run)
+    spot = ahead + PLACE * _unit(goal_offset)
+    return leaving, spot - body.ball - body.ball_velocity
 
 
 def _in_reach(body: Bodies, b: RcssParams) -> jax.Array:
     offset = body.ball - body.position
-    return jnp.sum(offset * offset, axis=-1) <= b.kickable_distance**2
+    return dot(offset, offset) <= b.kickable_distance**2
 
 
-def _kick_by(body: Bodies, acceleration: jax.Array, b: RcssParams) -> Commands:
-    """The kick that gives the ball ``acceleration`` f32[m, 2] (as near as the power allows)."""
-    factor = jnp.maximum(body.factor, 0.05)
-    power = jnp.clip(_norm(acceleration) / (b.kick_power_rate * factor), 0.0, b.max_power)
-    return _command(KICK, acceleration.shape[0], kick_power=power,
-                    kick_direction=_clockwise(body, acceleration))
-
-
-def kick_to(body: Bodies, target: jax.Array, speed: jax.Array, face_first: jax.Array,
-            b: RcssParams = DEFAULT) -> Commands:
+def _kick_plan(body: Bodies, target: jax.Array, speed: jax.Array, face_first: jax.Array,
+               b: RcssParams) -> tuple[jax.Array, jax.Array]:
     """A smart kick of the ball in reach at ``target`` f32[m, 2], leaving at ``speed`` f32[m]
     (module docstring); ``face_first`` bool[m]: turn to the target before kicking when the
-    ball stays in reach (a dribble runs after its kick)."""
+    ball stays in reach (a dribble runs after its kick). (turns bool[m], the vector f32[m, 2]
+    it turns to, else the acceleration its kick gives the ball)."""
     u = _unit(target - body.ball)
     v0 = body.ball_velocity
     most = _most(body, b)
-    along = jnp.sum(v0 * u, axis=-1)
-    room = most**2 - (jnp.sum(v0 * v0, axis=-1) - along**2)
+    along = dot(v0, u)
+    room = most**2 - (dot(v0, v0) - along**2)
     reachable = jnp.where(room >= 0.0, along + jnp.sqrt(jnp.maximum(room, 0.0)), -1.0)
     speed = jnp.minimum(speed, b.ball_speed_max)
     first = jnp.minimum(speed, reachable)
     from_me = body.ball - body.position
-    crosses = (jnp.sum(from_me * u, axis=-1) < 0.0) & (
+    crosses = (dot(from_me, u) < 0.0) & (
         jnp.abs(from_me[:, 0] * u[:, 1] - from_me[:, 1] * u[:, 0])
         < b.player_size + b.ball_size + 0.1
     )
-    off = jnp.sum(body.facing * u, axis=-1) < np.cos(np.radians(30.0))  # u is a unit vector
+    off = dot(body.facing, u) < np.cos(np.radians(30.0))  # u is a unit vector
     ahead = body.position + body.velocity
     drift = body.ball + v0 - ahead
-    stays = (jnp.sum(drift * drift, axis=-1) < (b.kickable_distance - 0.15) ** 2) & (
-        jnp.sum(v0 * v0, axis=-1) < 0.3**2)
+    stays = (dot(drift, drift) < (b.kickable_distance - 0.15) ** 2) & (
+        dot(v0, v0) < 0.3**2)
     wants_turn = face_first & off
     now = (first >= KICK_THRESHOLD * speed) & ~crosses & ~(wants_turn & stays)
-    kick = _kick_by(body, first[:, None] * u - v0, b)
-    turn = _turn_to(body, u, b)
-    place = _kick_by(body, (ahead + PLACE * u) - body.ball - v0, b)
-    turn_first = off & stays
-    return _where(now, kick, _where(turn_first, turn, place))
+    kick = first[:, None] * u - v0
+    place = (ahead + PLACE * u) - body.ball - v0
+    turns = ~now & off & stays
+    return turns, jnp.where(now[:, None], kick, jnp.where(turns[:, None], u, place))
 
 
 def _most(body: Bodies, b: RcssParams) -> jax.Array:
@@ -258,40 +237,50 @@ _HOLD_ANGLES = np.arange(12) * (2 * np.pi / 12)
 _HOLD_SPOTS = np.stack([np.cos(_HOLD_ANGLES), np.sin(_HOLD_ANGLES)], axis=1).astype(np.float32)
 
 
-def hold(body: Bodies, opponents: jax.Array, goal: jax.Array, b: RcssParams = DEFAULT) -> Commands:
-    """Keep the ball in reach, at the spot around the player (twelve, :data:`HOLD_RADIUS`
+def _hold_plan(body: Bodies, opponents: jax.Array, goal_offset: jax.Array,
+               b: RcssParams) -> tuple[jax.Array, jax.Array]:
+    """HOLD: keep the ball in reach, at the spot around the player (twelve, :data:`HOLD_RADIUS`
     away) farthest from the nearest of ``opponents`` f32[m, k, 2] that one kick can put it on;
-    face ``goal`` while it already lies there."""
-    apart = opponents - body.position[:, None, :]
-    gaps = jnp.sum(apart * apart, axis=-1)  # [m, k] squared: the order is the same
-    pick = (gaps <= jnp.min(gaps, axis=1, keepdims=True))[..., None]
-    nearest = jnp.sum(jnp.where(pick, opponents, 0.0), axis=1) / jnp.maximum(
-        jnp.sum(pick, axis=1), 1)
+    face the goal ``goal_offset`` f32[m, 2] away while it already lies there. (turns bool[m],
+    the vector f32[m, 2] it turns to, else the kick's acceleration)."""
+    # Elementwise over the few opponents and spots (a reduction over them, or a pick by a
+    # one-hot sum, is a slow library call on XLA's CPU backend).
+    gaps = [dot(o - body.position, o - body.position)  # squared: the order is the same
+            for o in (opponents[:, k] for k in range(opponents.shape[1]))]
+    closest = functools.reduce(jnp.minimum, gaps)
+    picks = [g <= closest for g in gaps]
+    nearest = functools.reduce(jnp.add, [jnp.where(p[:, None], opponents[:, k], 0.0)
+                                         for k, p in enumerate(picks)]) / jnp.maximum(
+        functools.reduce(jnp.add, [p.astype(jnp.int32) for p in picks]), 1)[:, None]
     ahead = body.position + body.velocity
-    spots = ahead[:, None, :] + HOLD_RADIUS * jnp.asarray(_HOLD_SPOTS)[None]  # [m, 12, 2]
-    away = spots - nearest[:, None, :]
-    clear2 = jnp.sum(away * away, axis=-1)  # [m, 12] squared
     most = _most(body, b)
     rolling = body.ball + body.ball_velocity
-    need = spots - rolling[:, None, :]
-    feasible = jnp.sum(need * need, axis=-1) <= (most * most)[:, None]  # one kick gets there
-    clear2 = jnp.where(feasible, clear2, clear2 - 1e4)
-    best = jnp.argmax(clear2, axis=1)
-    chosen = (best[:, None] == np.arange(len(_HOLD_SPOTS))[None, :])[..., None]
-    spot = jnp.sum(jnp.where(chosen, spots, 0.0), axis=1)
+    spots = [ahead + jnp.asarray(unit) for unit in HOLD_RADIUS * _HOLD_SPOTS]
+    clear = []  # squared
+    for here in spots:
+        need = here - rolling
+        feasible = dot(need, need) <= most * most  # one kick gets there
+        clear2 = dot(here - nearest, here - nearest)
+        clear.append(jnp.where(feasible, clear2, clear2 - 1e4))
+    clearest, spot = clear[0], spots[0]
+    for clear2, here in zip(clear[1:], spots[1:], strict=True):  # the first of the clearest
+        better = clear2 > clearest
+        clearest = jnp.where(better, clear2, clearest)
+        spot = jnp.where(better[:, None], here, spot)
     here = _norm(rolling - nearest)
-    settled = (here >= jnp.sqrt(jnp.maximum(jnp.max(clear2, axis=1), 0.0)) - 0.2) & (
+    settled = (here >= jnp.sqrt(jnp.maximum(clearest, 0.0)) - 0.2) & (
         _norm(rolling - ahead) < b.kickable_distance - 0.25)
-    place = _kick_by(body, spot - rolling, b)
-    return _where(settled, _turn_to(body, goal - body.position, b), place)
+    return settled, jnp.where(settled[:, None], goal_offset, spot - rolling)
 
 
-def tackle_probability(position: jax.Array, heading: jax.Array, ball: jax.Array) -> jax.Array:
+def tackle_probability(position: jax.Array, heading: jax.Array, ball: jax.Array,
+                       facing: jax.Array | None = None) -> jax.Array:
     """rcssserver's tackle success probability f32[m] (v19 defaults): 1 - (forward /
     tackle_dist)^6 - (sideways / tackle_width)^6 (behind the body: tackle_back_dist), at
-    least 0."""
+    least 0. ``facing`` f32[m, 2]: the heading's unit vector, when known."""
     offset = ball - position
-    c, s = jnp.cos(heading), jnp.sin(heading)
+    c, s = (jnp.cos(heading), jnp.sin(heading)) if facing is None else (facing[:, 0],
+                                                                          facing[:, 1])
     forward = offset[:, 0] * c + offset[:, 1] * s
     side = -offset[:, 0] * s + offset[:, 1] * c
     reach = jnp.where(forward > 0.0, TACKLE_DIST, TACKLE_BACK_DIST)
@@ -333,45 +322,96 @@ def offside_line(opponent_x: jax.Array, valid: jax.Array, ball_x: jax.Array,
 def commands(choice: d.SkillChoice, body: Bodies, positions: jax.Array, sign: jax.Array,
              half_length: Any, decay: float, b: RcssParams = DEFAULT) -> Commands:
     """The command f32[m] fields of each player's decoded skill. ``positions`` f32[2n, 2] are
-    every player's (world), ``sign`` f32[m] each deciding player's frame (+1: team 0)."""
-    m = choice.kind.shape[0]
+    every player's (world), ``sign`` f32[m] each deciding player's frame (+1: team 0).
+
+    Every skill ends in one of four commands: a kick giving the ball an acceleration, a turn
+    to a vector, a dash (GO_TO, MARK, a run to the ball) or a tackle. So each skill's plan is
+    worked out on its own (which command, and its vector), the plans are picked by the kind,
+    and the picked command's arguments (one angle off the body, one power) are worked out
+    once: the same values as each skill's own command, for a fraction of the work."""
     n = positions.shape[0] // 2
+    # What many plans read is computed once into memory (XLA's CPU fusion would otherwise
+    # recompute the decode inside every consumer).
+    kind, target_index, direction_index, point = _pinned(*choice)
+    kind = kind.astype(jnp.int32)
     their_goal = sign[:, None] * jnp.stack([jnp.asarray(half_length), jnp.asarray(0.0)])
     our_goal = -their_goal
-    world_point = sign[:, None] * choice.point
-    pointed = (choice.target[:, None] == np.arange(2 * n)[None, :])[..., None]
-    target = jnp.sum(jnp.where(pointed, positions[None], 0.0), axis=1)  # no gather
+    world_point = sign[:, None] * point
+    target_index = target_index.astype(jnp.int32)
+    target = jnp.where((target_index >= 0)[:, None], positions[jnp.maximum(target_index, 0)],
+                       0.0)
     team = (sign < 0).astype(jnp.int32)
     other = jnp.where(team[:, None, None] == 0, positions[n:][None], positions[:n][None])
+    to_goal = their_goal - body.position
 
-    shot = kick_to(body, world_point, jnp.full(m, SHOOT_SPEED), jnp.zeros(m, bool), b)
+    # SHOOT, PASS and DRIBBLE are one smart kick at a target (the others' rows are unused).
+    passes, dribbles = kind == d.PASS, kind == d.DRIBBLE
     pass_target = target + world_point  # the lead offset, turned to the world
     pass_speed = jnp.clip(1.5 + (1.0 - decay) * _norm(pass_target - body.ball), 1.0,
                           b.ball_speed_max)
-    passing = kick_to(body, pass_target, pass_speed, jnp.zeros(m, bool), b)
-    angle = choice.direction.astype(jnp.float32) * d.DRIBBLE_STEP
+    angle = direction_index * d.DRIBBLE_STEP
     direction = sign[:, None] * jnp.stack([jnp.cos(angle), jnp.sin(angle)], axis=-1)
-    dribble = kick_to(body, body.position + DRIBBLE_LENGTH * direction,
-                      jnp.full(m, DRIBBLE_SPEED), jnp.ones(m, bool), b)
-    keep = hold(body, other, their_goal, b)
-    chase = intercept(body, their_goal, decay, b)
-    walk = go_to(body, world_point, 1.0, body.ball, b)
-    mark = go_to(body, target + MARK_DISTANCE * _unit(our_goal - target), 0.5, body.ball, b)
-    probability = tackle_probability(body.position, body.heading, body.ball)
-    tackle_direction = _clockwise(body, their_goal - body.position)
-    tackle = _where(probability > 0.0, _command(TACKLE, m, kick_direction=tackle_direction),
-                    chase)
-    options = (shot, passing, dribble, keep, chase, walk, mark, tackle)
-    # Every option is computed into memory once, then picked: as a chain of selects XLA's CPU
-    # fusion recomputed each option's work inside every consumer (profiled: 6x slower).
-    table = _materialised(jnp.stack([jnp.stack([x.astype(jnp.float32) for x in option])
-                                     for option in options]))  # [8, fields, m]
-    pick = (choice.kind[None, :] == jnp.arange(len(options))[:, None])[:, None, :]
-    chosen = jnp.sum(jnp.where(pick, table, 0.0), axis=0)
-    return Commands(chosen[0].astype(jnp.int32), *chosen[1:])
+    kick_target = jnp.where(passes[:, None], pass_target, jnp.where(
+        dribbles[:, None], body.position + DRIBBLE_LENGTH * direction, world_point))
+    kick_speed = jnp.where(passes, pass_speed, jnp.where(dribbles, DRIBBLE_SPEED, SHOOT_SPEED))
+    kick_turns, kick_vector = _kick_plan(body, kick_target, kick_speed, dribbles, b)
+    # HOLD's plan, the dearest, once into memory: else each of the picked command's columns
+    # below works it out again.
+    hold_turns, hold_vector = _pinned(*_hold_plan(body, other, to_goal, b))
+    hold_turns = hold_turns > 0.0
+    # INTERCEPT (and TACKLE without a chance) settles a ball in reach, else runs to it; GO_TO
+    # and MARK run to their points: one run, to the kind's point.
+    leaving, trap = _settle_plan(body, to_goal, b)
+    _, reach_point = reach_steps(body.position, body.heading, body.ball, body.ball_velocity,
+                                 decay, b, body.facing)
+    marked = target + MARK_DISTANCE * _unit(our_goal - target)
+    run_point = jnp.where((kind == d.GO_TO)[:, None], world_point,
+                          jnp.where((kind == d.MARK)[:, None], marked, reach_point))
+    threshold, threshold2 = (
+        jnp.where(kind == d.GO_TO, go_to, jnp.where(kind == d.MARK, mark, chase))
+        for go_to, mark, chase in ((1.0, 0.5, 0.3), (1.0**2, 0.5**2, 0.3**2)))
+    run_kind, run_vector, dash_power = _run_plan(body, run_point, threshold, threshold2, b)
+    chases = (kind == d.INTERCEPT) | (
+        (kind == d.TACKLE) & ~(tackle_probability(body.position, body.heading, body.ball,
+                                                  body.facing) > 0.0))
+    settles = chases & _in_reach(body, b)
+
+    tackles = (kind == d.TACKLE) & ~chases
+    plan_kind = jnp.select(
+        [kind <= d.DRIBBLE, kind == d.HOLD, settles, tackles],
+        [jnp.where(kick_turns, TURN, KICK), jnp.where(hold_turns, TURN, KICK),
+         jnp.where(leaving, KICK, TURN), jnp.full_like(kind, TACKLE)],
+        run_kind,
+    )
+    vector = jnp.select(
+        [(kind <= d.DRIBBLE)[:, None], (kind == d.HOLD)[:, None], settles[:, None],
+         tackles[:, None]],
+        [kick_vector, hold_vector, jnp.where(leaving[:, None], trap, to_goal), to_goal],
+        run_vector,
+    )
+    plan_kind, vector, dash_power = _pinned(plan_kind, vector, dash_power)
+    plan_kind = plan_kind.astype(jnp.int32)
+    clockwise = _clockwise(body, vector)
+    zeros = jnp.zeros_like(clockwise)
+    kick_power = jnp.clip(_norm(vector) / (b.kick_power_rate * jnp.maximum(body.factor, 0.05)),
+                          0.0, b.max_power)
+    moment = jnp.clip(clockwise * (1.0 + b.inertia_moment * body.speed), -180.0, 180.0)
+    kicks, dashes = plan_kind == KICK, plan_kind == DASH
+    return Commands(
+        kind=plan_kind,
+        dash_power=jnp.where(dashes, dash_power, zeros),
+        dash_direction=jnp.where(dashes, clockwise, zeros),
+        kick_power=jnp.where(kicks, kick_power, zeros),
+        kick_direction=jnp.where(kicks | (plan_kind == TACKLE), clockwise, zeros),
+        turn_moment=jnp.where(plan_kind == TURN, moment, zeros),
+    )
 
 
-def _materialised(values: jax.Array) -> jax.Array:
-    """The same values, computed once into memory: a reduction is never fused into its
-    consumers (as ``elevens.env.observe`` pins its arrays)."""
-    return jnp.max(jnp.stack([values, jnp.full_like(values, -jnp.inf)]), axis=0)
+def _pinned(*arrays: jax.Array) -> tuple[jax.Array, ...]:
+    """The same arrays (f32[m] or f32[m, k]; integers and booleans come back as f32), computed
+    once into one buffer (``bodies.materialised``)."""
+    columns = [a.reshape(a.shape[0], -1).astype(jnp.float32) for a in arrays]
+    (values,) = materialised(jnp.concatenate(columns, axis=1))
+    edges = np.cumsum([0] + [c.shape[1] for c in columns])
+    return tuple(values[:, lo:hi].reshape(a.shape)
+                 for a, lo, hi in zip(arrays, edges[:-1], edges[1:], strict=True))

@@ -409,8 +409,6 @@ def logs(args: RoboCupLogsArgs) -> None:
 
     paths = find_logs(args.logs)
     games = [read_rcg(path) for path in paths]
-    for game in games:
-        game.side_of(args.team)  # every log has the team, before the summary
     summary = summarize_team(games, args.team)
     if args.json:
         print(json_lib.dumps(summary.as_dict()))

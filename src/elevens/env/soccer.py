@@ -125,15 +125,21 @@ class Soccer:
             )
 
     def check_actions(self, actions: jax.Array) -> None:
-        """Raise ``ValueError`` if actions are not ``[2, n, 2]`` floats (shapes are static)."""
-        expected = (2, self.players_per_team, 2)
+        """Raise ``ValueError`` if actions are not ``[2, n, actions]`` floats (shapes are
+        static)."""
+        expected = (2, self.players_per_team, self.actions)
         shape = tuple(getattr(actions, "shape", ()))
         if shape != expected:
             raise ValueError(
-                f"actions have shape {shape}, expected {expected} (team, player, (move, rot))"
+                f"actions have shape {shape}, expected {expected} (team, player, "
+                f"{self.action_layout()})"
             )
         if not jnp.issubdtype(actions.dtype, jnp.floating):
             raise ValueError(f"actions have dtype {actions.dtype}, expected a float dtype")
+
+    def action_layout(self) -> str:
+        """A player's action values, as the messages about actions name them."""
+        return "(move, rot)"
 
     # ------------------------------------------------------------------ reset
     def reset(self, key: jax.Array, params: EnvParams) -> tuple[State, Observation]:

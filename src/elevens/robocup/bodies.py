@@ -654,17 +654,8 @@ class RcssSoccer(Soccer):
     def default_params(self, **overrides: Any) -> EnvParams:
         return rcss_field(self.players_per_team, **overrides)
 
-    def check_actions(self, actions: jax.Array) -> None:
-        """Raise ``ValueError`` unless actions are ``[2, n, 12]`` floats."""
-        expected = (2, self.players_per_team, ACTION_SIZE)
-        shape = tuple(getattr(actions, "shape", ()))
-        if shape != expected:
-            raise ValueError(
-                f"actions have shape {shape}, expected {expected} (team, player, the 12 values "
-                "of the thesis's table 4.1)"
-            )
-        if not jnp.issubdtype(actions.dtype, jnp.floating):
-            raise ValueError(f"actions have dtype {actions.dtype}, expected a float dtype")
+    def action_layout(self) -> str:
+        return "the 12 values of the thesis's table 4.1"
 
     def transition(
         self, key: jax.Array, state: State, actions: jax.Array, params: EnvParams

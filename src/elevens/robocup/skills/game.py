@@ -66,17 +66,8 @@ class SkillSoccer(RcssSoccer):
     def default_params(self, **overrides: Any) -> EnvParams:
         return skills_field(self.players_per_team, **overrides)
 
-    def check_actions(self, actions: jax.Array) -> None:
-        """Raise ``ValueError`` unless actions are ``[2, n, 4]`` floats."""
-        expected = (2, self.players_per_team, SKILL_ACTION_SIZE)
-        shape = tuple(getattr(actions, "shape", ()))
-        if shape != expected:
-            raise ValueError(
-                f"actions have shape {shape}, expected {expected} (team, player, (kind 0..7, "
-                f"pointer 0..{2 * self.players_per_team - 1}, x, y))"
-            )
-        if not jnp.issubdtype(actions.dtype, jnp.floating):
-            raise ValueError(f"actions have dtype {actions.dtype}, expected a float dtype")
+    def action_layout(self) -> str:
+        return f"(kind 0..7, pointer 0..{2 * self.players_per_team - 1}, x, y)"
 
     def applied(self, actions: jax.Array) -> jax.Array:
         """The actions f32[..., 2, n, 4] as the decode reads them: NaN counts as 0, the kind

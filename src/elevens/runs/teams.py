@@ -318,20 +318,13 @@ def trained_config(spec: str | TeamSpec) -> Any | None:
     None for a handcrafted team; a bad spec raises as ``load_team`` does."""
     import json
 
-    from elevens.teams.trained import CONFIG_FILE, shipped_team_directory
+    from elevens.teams.trained import CONFIG_FILE
     from elevens.train.config import TrainConfig
 
     parsed = parse_team_spec(spec) if isinstance(spec, str) else spec
     if parsed.handcrafted is not None:
         return None
-    folder = shipped_team_directory(parsed.shipped) if parsed.shipped is not None else None
-    if folder is None and parsed.path is not None and is_exported_team(parsed.path):
-        if parsed.iteration is not None:
-            raise ValueError(
-                f"team spec {parsed.text!r}: an exported team has one set of networks, drop "
-                "the '@ITERATION'"
-            )
-        folder = parsed.path
+    folder = team_folder(parsed)
     if folder is not None:
         where = folder / CONFIG_FILE
         return TrainConfig.from_saved(json.loads(where.read_text()), str(where))
@@ -341,14 +334,6 @@ def trained_config(spec: str | TeamSpec) -> Any | None:
     return config
 
 
-def load_shipped_team(name: str) -> tuple[Any, Any]:
-    """(TrainConfig, LearnerParams) of shipped team ``name``. An unknown name is a
-    ``ValueError`` listing the shipped teams (see ``load_exported_team`` for the rest)."""
-    from elevens.teams.trained import shipped_team_directory
-
-    return load_exported_team(shipped_team_directory(name))
-
-
 def is_exported_team(path: Path) -> bool:
     """True for a folder written by ``export_team`` (or a shipped team's)."""
     from elevens.teams.trained import NETWORKS_FILE
@@ -356,11 +341,14 @@ def is_exported_team(path: Path) -> bool:
     return (path / NETWORKS_FILE).is_file()
 
 
-def load_team_folder(spec: TeamSpec) -> tuple[Any, Any] | None:
-    """(TrainConfig, LearnerParams) when ``spec`` names a shipped team or an exported folder,
-    else None (a handcrafted team or a training checkpoint)."""
+def team_folder(spec: TeamSpec) -> Path | None:
+    """The folder of a shipped team or an exported one that ``spec`` names, else None (a
+    handcrafted team or a training checkpoint); an exported team with ``@ITERATION`` is a
+    ValueError, and an unknown shipped name one listing the shipped teams."""
+    from elevens.teams.trained import shipped_team_directory
+
     if spec.shipped is not None:
-        return load_shipped_team(spec.shipped)
+        return shipped_team_directory(spec.shipped)
     if spec.path is None or not is_exported_team(spec.path):
         return None
     if spec.iteration is not None:
@@ -368,7 +356,14 @@ def load_team_folder(spec: TeamSpec) -> tuple[Any, Any] | None:
             f"team spec {spec.text!r}: an exported team has one set of networks, drop the "
             "'@ITERATION'"
         )
-    return load_exported_team(spec.path)
+    return spec.path
+
+
+def load_team_folder(spec: TeamSpec) -> tuple[Any, Any] | None:
+    """(TrainConfig, LearnerParams) when ``spec`` names a shipped team or an exported folder,
+    else None (a handcrafted team or a training checkpoint)."""
+    folder = team_folder(spec)
+    return None if folder is None else load_exported_team(folder)
 
 
 def load_exported_team(directory: Path) -> tuple[Any, Any]:

@@ -13,6 +13,7 @@ from elevens.cli import main
 from elevens.robocup.rcg import find_logs, read_rcg, summarize_team
 
 EXCERPT = Path(__file__).parents[1] / "data" / "rcss" / "goal_excerpt.rcg"
+FAULT_EXCERPT = Path(__file__).parents[1] / "data" / "rcss" / "fault_excerpt.rcg"
 
 
 def _player(side: str, unum: int, x: float, y: float, *, kicks: int = 0, tackles: int = 0,
@@ -78,6 +79,59 @@ def test_a_small_log_tells_each_touch_goal_and_spent_stamina(tmp_path: Path) -> 
     assert (theirs.goals_for, theirs.conceded) == (1, ())
     assert theirs.ball_in_own_half == 1.0
     assert theirs.capacity_empty_cycle == (float("inf"), float("inf"))
+
+
+def _faults(path: Path) -> Path:
+    """40 cycles, the half at 20, the ball at the centre spot and our 2 and 3 and their 2 beside
+    it. Our 2 kicks off at 2, 11 and 19 and gives away a free kick each time (at 5 by a kick, at
+    12 and 20 by running into the ball); their 2 takes each free kick. After the first they
+    score at 9 before we touch the ball; after the second our 3 touches it at 15 and they score
+    at 17 all the same; after the third they score at 25, in the other half. Their 2 gives one
+    away after its kick-in (30), and we never score."""
+    kicks_at = {("l", 2): (2, 5, 11, 19), ("l", 3): (15,), ("r", 2): (7, 14, 22, 29)}
+    where = {("l", 2): (-0.5, 0.0), ("l", 3): (0.0, 1.0), ("r", 2): (0.5, 0.0)}
+    shows = []
+    for cycle in range(1, 41):
+        players = [_player("l", 1, -50, 0), _player("r", 1, 50, 0)]
+        for (side, unum), (x, y) in where.items():
+            kicks = sum(at <= cycle for at in kicks_at[(side, unum)])
+            players.append(_player(side, unum, x, y, kicks=kicks))
+        shows.append((cycle, (0.0, 0.0), players))
+    modes = {1: "kick_off_l", 2: "play_on", 5: "free_kick_fault_l", 6: "free_kick_r",
+             7: "play_on", 9: "goal_r", 10: "kick_off_l", 11: "play_on",
+             12: "free_kick_fault_l", 13: "free_kick_r", 14: "play_on", 17: "goal_r",
+             18: "kick_off_l", 19: "play_on", 20: "free_kick_fault_l", 21: "free_kick_r",
+             22: "play_on", 25: "goal_r", 26: "kick_off_l", 28: "kick_in_r", 29: "play_on",
+             30: "free_kick_fault_r", 31: "free_kick_l", 32: "play_on"}
+    return _log(path, shows, modes, (0, 3))
+
+
+def test_free_kick_faults_count_the_goals_conceded_before_the_next_touch(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    game = read_rcg(_faults(tmp_path / "f.rcg"))
+    ours = summarize_team([game])
+    assert [(f.cycle, f.set_piece, f.conceded_cycle) for f in ours.faults] == [
+        (5, "kick_off", 9), (12, "kick_off", None), (20, "kick_off", None)]
+    theirs = summarize_team([game], "them")
+    assert [(f.cycle, f.set_piece, f.conceded_cycle) for f in theirs.faults] == [
+        (30, "kick_in", None)]
+    assert ("  free-kick faults given away: 3 (after its kick_off 3), 1 followed by a goal "
+            "conceded before its next touch") in ours.lines()
+    main(["robocup", "logs", str(tmp_path / "f.rcg"), "--json"])
+    out = json.loads(capsys.readouterr().out)
+    assert out["faults"][0] == {"cycle": 5, "set_piece": "kick_off", "conceded_cycle": 9}
+
+
+def test_a_recorded_free_kick_fault_and_the_goal_after_it() -> None:
+    # rcss-gpu's kick-off taker (its 10) ran into its own kick 45 cycles later; helios-base
+    # took the free kick and scored before rcss-gpu touched the ball again.
+    game = read_rcg(FAULT_EXCERPT)
+    assert game.names == ("rcssgpu", "HELIOS_base")
+    assert game.touches[0].tolist() == [1, 0, 10]  # the kick-off, at cycle 3472
+    (fault,) = summarize_team([game]).faults
+    assert (fault.cycle, fault.set_piece, fault.conceded_cycle) == (3517, "kick_off", 3589)
+    assert summarize_team([game], "HELIOS_base").faults == ()
 
 
 def test_a_recorded_log_of_rcssserver_19_reads_all_22_players(tmp_path: Path) -> None:

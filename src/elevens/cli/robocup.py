@@ -393,8 +393,9 @@ def team(args: RoboCupTeamArgs) -> None:
 @dataclass(frozen=True)
 class RoboCupLogsArgs:
     """Read rcssserver's game logs (.rcg) and tell one team's matches: the score, who touched
-    the ball, where the scorers won it before each goal it conceded, and when its players'
-    stamina capacity ran out."""
+    the ball, where the scorers won it before each goal it conceded, the free-kick faults it
+    gave away (a set piece's taker touching the ball twice) and the goals conceded after them
+    before its next touch, and when its players' stamina capacity ran out."""
 
     logs: tyro.conf.Positional[Annotated[tuple[str, ...], tyro.conf.arg(metavar="PATH...")]]
     """.rcg files, or folders searched through (e.g. a match series' --log-dir)."""

@@ -1,6 +1,7 @@
 """rcssserver's game logs (.rcg, the text format of version 5 and 6 that rcssserver 19 writes)
 read into arrays, and what they say about a match from one team's side: where the goals came
-from, who touched the ball, and when the players' stamina ran out.
+from, who touched the ball, the free-kick faults it gave away, and when the players' stamina ran
+out.
 
 A game is read from its ``(team ...)``, ``(playmode ...)`` and ``(show ...)`` lines; a show
 line gives the ball and every player's position, stamina and command counters. A **touch** is
@@ -15,6 +16,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import re
+from collections import Counter
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
@@ -22,6 +24,7 @@ from typing import Any
 import numpy as np
 
 __all__ = [
+    "FaultStory",
     "GoalStory",
     "MatchLog",
     "TeamSummary",
@@ -33,6 +36,10 @@ __all__ = [
 TOUCH_REACH = 2.5
 """Metres: a counted kick or tackle with the ball farther than this at the show before was
 not a touch (kickable area 1.085 m for the default player, a tackle reaches 2 m ahead)."""
+# The play modes (less their side) whose taker may not touch the ball twice: rules.SET_PIECES,
+# not imported (rules brings in the simulator's bodies, and this module only reads text).
+_SET_PIECES = ("kick_off", "free_kick", "indirect_free_kick", "kick_in", "corner_kick",
+               "goal_kick")
 THIRDS = (-52.5, -17.5, 17.5, 52.5)
 """Our third, the middle, their third (x from our side)."""
 
@@ -61,6 +68,9 @@ class MatchLog:
     capacity: np.ndarray  # float [T, 2, 11]
     touches: np.ndarray  # int [K, 3]: show index, side (0 left), shirt number
     playmodes: tuple[tuple[int, str], ...]  # (cycle, mode) as they changed
+    # Per playmode, the shows before it: a stopped clock repeats a cycle, so only this orders
+    # a mode against the shows (and so against the touches).
+    playmode_shows: tuple[int, ...]
 
     def side_of(self, team: str | None) -> int:
         """0 or 1 for the team named ``team`` (None: the left team)."""
@@ -103,6 +113,7 @@ def read_rcg(path: str | Path) -> MatchLog:
     balls: list[tuple[float, float]] = []
     rows: list[np.ndarray] = []  # per show: [2, 11, 6] x, y, stamina, capacity, kicks, tackles
     modes: list[tuple[int, str]] = []
+    mode_shows: list[int] = []
     with open(path, encoding="ascii", errors="replace") as f:
         header = f.readline()
         if not header.startswith("ULG"):
@@ -128,6 +139,7 @@ def read_rcg(path: str | Path) -> MatchLog:
                 mode = _PLAYMODE.match(line)
                 if mode:
                     modes.append((int(mode.group(1)), mode.group(2)))
+                    mode_shows.append(len(rows))
             elif line.startswith("(team "):
                 team = _TEAM.match(line)
                 if team:
@@ -141,6 +153,7 @@ def read_rcg(path: str | Path) -> MatchLog:
         path=str(path), names=names, score=score, cycle=np.asarray(cycles), ball=ball_xy,
         pos=table[..., :2], stamina=table[..., 2], capacity=table[..., 3],
         touches=_touches(ball_xy, table[..., :2], table[..., 4:6]), playmodes=tuple(modes),
+        playmode_shows=tuple(mode_shows),
     )
 
 
@@ -166,6 +179,16 @@ class GoalStory:
 
 
 @dataclasses.dataclass(frozen=True)
+class FaultStory:
+    """A free-kick fault given away by the team of view (``free_kick_fault_l/_r``: its set
+    piece's taker touched the ball a second time before anyone else did)."""
+
+    cycle: int
+    set_piece: str  # the team's set piece before it: kick_off, free_kick, kick_in, ...
+    conceded_cycle: int | None  # the goal it conceded before its next touch (None: none)
+
+
+@dataclasses.dataclass(frozen=True)
 class TeamSummary:
     """One team's matches (means a match where it says so)."""
 
@@ -177,6 +200,7 @@ class TeamSummary:
     touches_against: float
     ball_in_own_half: float  # share of the shows
     conceded: tuple[GoalStory, ...]
+    faults: tuple[FaultStory, ...]
     capacity_empty_cycle: tuple[float, float]  # median over matches, per half (inf: never)
 
     def as_dict(self) -> dict[str, Any]:
@@ -208,6 +232,13 @@ class TeamSummary:
                 f"{np.median(last) if last else float('nan'):.0f}; within 100 cycles of its "
                 f"own kick-off: {int(np.sum(since < 100))} of {len(goals)}",
             ]
+        faults = self.faults
+        kinds = Counter(f.set_piece for f in faults)
+        after = ", ".join(f"{kind} {count}" for kind, count in kinds.most_common())
+        goals_after = sum(f.conceded_cycle is not None for f in faults)
+        out.append(f"  free-kick faults given away: {len(faults)}" + (
+            f" (after its {after}), {goals_after} followed by a goal conceded before its next "
+            f"touch" if faults else ""))
         empty = [("never" if math.isinf(c) else f"cycle {c:.0f}")
                  for c in self.capacity_empty_cycle]
         out.append(f"  stamina capacity of its outfield players spent (mean, median match): "
@@ -240,6 +271,34 @@ def _story(game: MatchLog, side: int, cycle: int, show: int) -> GoalStory:
     )
 
 
+def _faults(game: MatchLog, side: int) -> list[FaultStory]:
+    """The free-kick faults ``side`` gave away, each with the goal it conceded before its next
+    touch (its next set piece begins with one) and in the same half."""
+    letter = "lr"[side]
+    half = int(game.cycle.max() // 2)
+    ours = game.touches[game.touches[:, 1] == side, 0]
+    modes = list(zip(game.playmodes, game.playmode_shows, strict=True))
+    out = []
+    set_piece = "play"
+    for i, ((cycle, mode), shows) in enumerate(modes):
+        if mode[:-2] in _SET_PIECES and mode.endswith(f"_{letter}"):
+            set_piece = mode[:-2]
+        if mode != f"free_kick_fault_{letter}":
+            continue
+        # A fault by a kick has its count in the first show after the mode: not a next touch.
+        next_touch = ours[ours > shows]
+        until = int(next_touch[0]) if len(next_touch) else len(game.cycle)
+        conceded = None
+        for (later, later_mode), later_shows in modes[i + 1:]:
+            if later_shows >= until or (cycle <= half < later):
+                break
+            if later_mode == f"goal_{'rl'[side]}":
+                conceded = later
+                break
+        out.append(FaultStory(cycle=cycle, set_piece=set_piece, conceded_cycle=conceded))
+    return out
+
+
 def _capacity_empty(game: MatchLog, side: int) -> tuple[float, float]:
     """The first cycle of each half at which the outfield players' mean capacity is spent."""
     mean = np.nanmean(game.capacity[:, side, 1:], axis=-1)  # the goalie (shirt 1) aside
@@ -254,6 +313,7 @@ def _capacity_empty(game: MatchLog, side: int) -> tuple[float, float]:
 def summarize_team(games: Iterable[MatchLog], team: str | None = None) -> TeamSummary:
     """The matches of ``team`` (None: the left team of each game), from its side."""
     stories: list[GoalStory] = []
+    faults: list[FaultStory] = []
     goals_for = goals_against = 0
     touches_for = touches_against = 0
     own_half: list[float] = []
@@ -271,6 +331,7 @@ def summarize_team(games: Iterable[MatchLog], team: str | None = None) -> TeamSu
         flip = 1.0 if side == 0 else -1.0
         own_half.append(float(np.mean(flip * game.ball[:, 0] < 0)))
         empty.append(_capacity_empty(game, side))
+        faults += _faults(game, side)
         conceded = f"goal_{'rl'[side]}"
         for cycle, mode in game.playmodes:
             if mode == conceded:
@@ -282,6 +343,6 @@ def summarize_team(games: Iterable[MatchLog], team: str | None = None) -> TeamSu
     return TeamSummary(
         team=name or "", matches=count, goals_for=goals_for, goals_against=goals_against,
         touches_for=touches_for / count, touches_against=touches_against / count,
-        ball_in_own_half=float(np.mean(own_half)), conceded=tuple(stories),
+        ball_in_own_half=float(np.mean(own_half)), conceded=tuple(stories), faults=tuple(faults),
         capacity_empty_cycle=(float(np.median(halves[:, 0])), float(np.median(halves[:, 1]))),
     )

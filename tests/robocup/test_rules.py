@@ -119,6 +119,25 @@ def test_our_set_piece_sends_the_nearest_player_to_the_ball() -> None:
     assert commands[1] == Dash(100.0)
 
 
+def test_in_our_set_piece_only_the_taker_touches_the_ball() -> None:
+    """Read from rcss-gpu's matches against helios-base: at a kick-off the policy of the player
+    in the kick-off slot kicked while a teammate was the routine's taker; the server made it the
+    taker, the ban followed the other, and it ran into its own kick 45 cycles later."""
+    view = _view(ball_distance=[40.0, 0.5, 0.9])  # 1 is nearest: the taker; 2 is in reach too
+    policy = [Catch(0.0), Dash(20.0), Kick(100.0, -78.0)]
+    commands, what = apply_rules(policy, view, "kick_off_l", 0, goalie=None)
+    assert what == "set_piece" and isinstance(commands[1], Kick) and commands[2] is None
+    assert commands[0] is None  # a catch is a touch too
+    # Nobody sees the ball: the outfield look for it, and the goalie's policy may not catch.
+    commands, _ = apply_rules(policy, _view(ball_seen=[False] * 3), "kick_in_l", 0)
+    assert commands == [None, Turn(SEARCH_TURN), Turn(SEARCH_TURN)]
+    commands, _ = apply_rules([NoOp(), Tackle(50.0), Dash(30.0)], view, "free_kick_l", 0)
+    assert commands[2] == Dash(30.0)  # dashes and the rest go out
+    # Play on and their set pieces leave the policy's kicks alone.
+    for mode in ("play_on", "kick_in_r"):
+        assert apply_rules(policy, view, mode, 0, goalie=None)[0] == policy
+
+
 def test_a_kickable_taker_shoots_near_the_goal_and_clears_up_the_wing_far_from_it() -> None:
     near = _view(position=[[-50.0, 0.0], [40.0, 0.0], [0.0, 0.0]],
                  ball_distance=[50.0, 0.5, 40.0], ball_bearing=[0.0, 0.0, 0.0])

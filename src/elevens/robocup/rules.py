@@ -14,7 +14,8 @@ some of them with short scripted routines, then hands back to the policy when pl
   goal kick) turns to it,
   runs to it and kicks: at the goal from within ``SHOOT_RANGE`` of it, a pass back to a
   midfield slot at kick-off, else a long ball up the wing. Everybody else plays the policy
-  (but the goalie, which guards its goal).
+  (but the goalie, which guards its goal) less its kicks, tackles and catches: the first
+  kick makes the server's taker, which must be the one the second-touch ban follows.
 * **the goalie catches** in play_on: the ball fresh in its latest see, within the catchable
   area (1.2 m along the catch direction) and the goalie inside its penalty area: ``(catch)``.
 * **the goalie guards the goal** in play and in set pieces it does not take (:func:`guard_goal`):
@@ -80,6 +81,7 @@ PENALTY_AREA = (FIELD_LENGTH / 2 - RCSS_PENALTY_AREA[0], RCSS_PENALTY_AREA[1])
 _HALF = np.array([FIELD_LENGTH / 2, FIELD_WIDTH / 2])
 _SIM_FIELD = np.array([50.0, 35.0])  # the simulator's default half extents (formation slots)
 _TURN_FIRST = math.radians(12.0)  # a taker further off its line to the ball turns first
+_TOUCHES = (Kick, Tackle, Catch)  # the commands that touch the ball
 _BALL_DECAY = 0.94  # server::ball_decay
 _KICK_POWER_RATE = 0.027  # server::kick_power_rate
 # Set pieces that the side named by the suffix takes.
@@ -311,6 +313,10 @@ def apply_rules(
         return out, "move"
     if kind == "ours":
         taker = our_set_piece_taker(view, play_mode, goalie, keep=taker)
+        # Only the taker touches the ball: the server's taker is whoever kicks first, and a
+        # policy's kick (the kick-off slot stands at the ball) made a player the taker that
+        # the ban (SecondTouch) did not follow: it ran into its own kick, a free kick against.
+        out = [None if i != taker and isinstance(c, _TOUCHES) else c for i, c in enumerate(out)]
         if taker is None:
             # Nobody sees the ball: the outfield players look for it (the set piece would
             # otherwise wait for ever; a quarter turn at a time covers the field in a few sees).
@@ -410,7 +416,6 @@ def guard_goal(
 # teammate's rising count is a touch; its sense_body's collision with the ball is one too.
 _COLLIDE = 0.385  # player_size + ball_size: closer than this, the player runs into the ball
 _PLAYER_SPEED_MAX = 1.05  # metres a cycle (player_speed_max of the default player type)
-_TOUCHES = (Kick, Tackle, Catch)
 
 
 @dataclasses.dataclass

@@ -18,6 +18,7 @@ from elevens.robocup.rules import (
     RECOVERING_DASH,
     SEARCH_TURN,
     STAMINA_RESERVE,
+    LastKick,
     MatchRoutines,
     SecondTouch,
     TeamView,
@@ -528,3 +529,50 @@ def test_match_routines_hold_the_kick_off_taker_until_a_teammate_plays_the_ball(
     # Player 3 kicked the ball (its count rose): the ban is over.
     out = step("play_on", {1: 0.9, 2: 1.0}, kick, kicks=(0, 2, 1))
     assert out[1] == kick[1] and routines.touch.taker is None and not routines.scripted[1]
+
+
+def test_the_last_kick_is_ours_after_a_teammates_count_rises_until_an_opponent_plays_it() -> None:
+    last = LastKick()
+    last.observe(_cycle(*_counts(30, (0, 0, 0))), "play_on", 0, 3, NAMES)
+    assert not last.ours  # the first sense_body only sets the counts
+    last.observe(_cycle(*_counts(31, (1, 0, 0))), "play_on", 0, 3, NAMES)
+    assert not last.ours  # the goalie's own kick: after an opponent's it may catch
+    last.observe(_cycle(*_counts(32, (1, 0, 1))), "play_on", 0, 3, NAMES)
+    assert last.ours
+    for see in ("(see 33 ((b) 5 0 0 0) ((p \"mine\" 3) 5.9 0 0 0 10 10 k))",  # a teammate
+                "(see 33 ((b) 5 0 0 0) ((p \"opp\" 9) 8 0 0 0 10 10))"):  # 3 m from the ball
+        last.observe(_cycle(_player(1, _sense(33, 1), see)), "play_on", 0, 3, NAMES)
+        assert last.ours, see
+    # An opponent seen with the ball in its reach (a see shows its kick once in three).
+    near = "(see 34 ((b) 5 0 0 0) ((p \"opp\" 9) 5.9 0 0 0 10 10))"
+    last.observe(_cycle(_player(1, _sense(34, 1), near)), "play_on", 0, 3, NAMES)
+    assert not last.ours
+    # Another kick of ours, then a stoppage: the server forgets the kicker.
+    last.observe(_cycle(*_counts(35, (1, 1, 1))), "play_on", 0, 3, NAMES)
+    assert last.ours
+    last.observe(_cycle(*_counts(36, (1, 1, 1))), "kick_in_r", 0, 3, NAMES)
+    assert not last.ours
+    # Far away, tackling ("t") counts as kicking.
+    last.observe(_cycle(*_counts(37, (1, 2, 1))), "play_on", 0, 3, NAMES)
+    far = "(see 38 ((b) 5 0 0 0) ((p \"opp\" 9) 20 0 0 0 10 10 t))"
+    last.observe(_cycle(_player(1, _sense(38, 1), far)), "play_on", 0, 3, NAMES)
+    assert not last.ours
+
+
+def test_match_routines_keep_the_goalie_from_catching_a_teammates_kick() -> None:
+    """Read from naive's matches against helios-base: its goalie caught the kick-off taker's
+    ball 28 times in 3 matches (back_pass: an indirect free kick in its area), 22 goals."""
+    routines = MatchRoutines(0, 3)
+    policy = [Dash(10.0), Dash(20.0), Dash(30.0)]
+    opponent = "(see 33 ((b) 1 0 0 0) ((p \"opp\" 9) 1.5 0 0 0 10 10))"
+    steps = [((0, 0, 0), None, "catch"), ((0, 1, 0), None, "policy"),
+             ((0, 1, 0), None, "policy"), ((0, 1, 0), opponent, "catch")]
+    for time, (kicks, see, what) in enumerate(steps, start=30):
+        routines.observe_mode("play_on")
+        players = _counts(time, kicks)
+        if see is not None:
+            players[0] = _player(1, _sense(time, kicks[0]), see)
+        routines.cycles += 5  # out of the catch ban (a catch every 5 cycles at most)
+        _, got = routines.apply(policy, _memory_seeing({0: 1.0}), _cycle(*players, time=time))
+        assert got == what, (time, kicks)
+

@@ -17,7 +17,8 @@ some of them with short scripted routines, then hands back to the policy when pl
   (but the goalie, which guards its goal) less its kicks, tackles and catches: the first
   kick makes the server's taker, which must be the one the second-touch ban follows.
 * **the goalie catches** in play_on: the ball fresh in its latest see, within the catchable
-  area (1.2 m along the catch direction) and the goalie inside its penalty area: ``(catch)``.
+  area (1.2 m along the catch direction) and the goalie inside its penalty area: ``(catch)``;
+  not while the ball's last kick was a teammate's (:class:`LastKick`: a back pass).
 * **the goalie guards the goal** in play and in set pieces it does not take (:func:`guard_goal`):
   it faces the ball and keeps to the line from the goal's centre to the ball, closer to the
   ball as it comes; a ball inside the penalty area it goes for, so that it can catch it.
@@ -57,6 +58,7 @@ from elevens.robocup.protocol import Catch, Command, Dash, Kick, Move, Tackle, T
 
 __all__ = [
     "CATCH_REACH",
+    "LastKick",
     "MATCH_CLOCK",
     "MatchRoutines",
     "SHOOT_RANGE",
@@ -510,6 +512,62 @@ def touched_by_another(
     return touched
 
 
+@dataclasses.dataclass
+class LastKick:
+    """Whether the ball's last kick was ours, as one team can tell: rcssserver (CatchRef) calls
+    a back pass, an indirect free kick to the opponents where the goalie stood, when the goalie
+    catches a ball whose last kick or tackle was a teammate's (a collision does not count), and
+    forgets the kicker at any play mode but play_on. ``kicks``: each player's kick and tackle
+    count at its latest sense_body."""
+
+    ours: bool = False
+    kicks: dict[int, int] = dataclasses.field(default_factory=dict)
+
+    def observe(self, cycle: Any, mode: str, side: int, n: int, team_names: tuple[str, str],
+                *, goalie: int | None = 0, kickable: float = KICKABLE) -> None:
+        """This cycle's percepts and play mode: a teammate's rising count makes the last kick
+        ours (the goalie's own kick leaves it as it was: after an opponent's kick the server
+        lets it catch); an opponent seen kicking, or seen with the ball in its reach (a see shows a
+        kick one time in three), makes it theirs; a stoppage clears it."""
+        teammate = False
+        for player in cycle.players:
+            i = player.unum - 1
+            body = player.sense_body
+            if player.side != side or not 0 <= i < n or body is None or body.counts.kick is None:
+                continue
+            count = body.counts.kick + (body.tackle_count or 0)
+            before = self.kicks.get(i)
+            teammate |= i != goalie and before is not None and count > before
+            self.kicks[i] = count
+        if teammate:
+            self.ours = True
+        elif self.ours and _opponent_at_ball(cycle, side, team_names[side], kickable):
+            self.ours = False
+        if mode != "play_on":
+            self.ours = False
+
+
+def _opponent_at_ball(cycle: Any, side: int, ours: str, kickable: float) -> bool:
+    """Whether one of our players' sees this cycle shows an opponent kicking or tackling, or
+    within ``kickable`` of the ball."""
+    for player in cycle.players:
+        if player.side != side or player.see is None:
+            continue
+        balls = [o for o in player.see.objects if o.kind == "ball" and o.distance is not None]
+        if not balls:
+            continue
+        ball = _relative(min(balls, key=lambda o: o.distance))
+        for obj in player.see.objects:
+            if obj.kind != "player" or obj.team in (None, ours):
+                continue
+            where = _relative(obj)
+            near = where is not None and ball is not None and (
+                np.linalg.norm(where - ball) <= kickable)
+            if near or obj.kicking or obj.tackling:
+                return True
+    return False
+
+
 def _ball_gap(view: TeamView, player: int) -> tuple[float, int] | None:
     """How far ``player`` is from the ball (its own see, else the nearest teammate's that sees
     it) and how many cycles old that is; None when nobody sees the ball."""
@@ -610,6 +668,7 @@ class MatchRoutines:
     catches: int = 0
     set_piece_cycles: int = 0
     touch: SecondTouch = dataclasses.field(default_factory=SecondTouch)
+    last_kick: LastKick = dataclasses.field(default_factory=LastKick)
     taker: int | None = None  # who is taking our set piece
     # Per player, last cycle: a routine's command went out instead of the policy's (a move,
     # a set piece, the goalie's guard or catch, a blocked second touch). Stamina pacing only
@@ -636,6 +695,8 @@ class MatchRoutines:
             cycle, self.side, self.n, self.touch, memory.team_names, kickable=self.kickable
         )
         self.touch.observe(mode, touched)
+        self.last_kick.observe(cycle, mode, self.side, self.n, memory.team_names,
+                               kickable=self.kickable)
         policy = list(commands)
         out, what = apply_rules(
             policy,
@@ -643,7 +704,10 @@ class MatchRoutines:
             mode,
             self.side,
             halves_played=self.halves,
-            catch_allowed=self.cycles - self.last_catch >= CATCH_BAN,
+            # No catch after a teammate's kick: a back pass gives the opponents a free kick in
+            # our penalty area (naive's goalie caught its kick-off taker's ball 28 times in 3
+            # matches against helios-base; 22 goals followed).
+            catch_allowed=self.cycles - self.last_catch >= CATCH_BAN and not self.last_kick.ours,
             taker=self.taker,
         )
         ours = mode_kind(mode, self.side) == "ours"

@@ -73,6 +73,7 @@ class Scene:
     cycle: int = 1
     kickable: int = 0  # our shirt number with the ball (0: none)
     kickable_opponent: bool = False
+    score: tuple[int, int] = (0, 0)  # ours, theirs, as the referee announced them
 
 
 def _v(m: Any, xy: Sequence[float], me: Sequence[float] | None = None) -> Any:
@@ -131,7 +132,8 @@ def state(scene: Scene, unum: int) -> Any:
         teammates=mates, opponents=opps, their_goalie_uniform_number=1,
         offside_line_x=float(max(np.sort(scene.theirs[:, 0])[-2], ball[0], 0.0)),
         cycle=scene.cycle, game_mode_type=scene.mode, is_our_set_play=False, stoped_cycle=0,
-        our_team_score=0, their_team_score=0, is_penalty_kick_mode=False,
+        our_team_score=scene.score[0], their_team_score=scene.score[1],
+        is_penalty_kick_mode=False,
         kickable_teammate_existance=scene.kickable not in (0, unum),
         kickable_opponent_existance=scene.kickable_opponent, **extra,
     )

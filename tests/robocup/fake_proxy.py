@@ -176,8 +176,8 @@ class FakeTeam:
     """Eleven players, each on its own thread; :meth:`cycle` sends one State each at once
     (as in synch mode) and returns the answers by shirt number and the round trips."""
 
-    def __init__(self, port: int, players: int = 11) -> None:
-        self.players = [FakePlayer(port, unum) for unum in range(1, players + 1)]
+    def __init__(self, port: int, players: int = 11, timeout_ms: int = 5000) -> None:
+        self.players = [FakePlayer(port, unum, timeout_ms) for unum in range(1, players + 1)]
 
     def cycle(self, scene: Scene, skip: Sequence[int] = ()) -> tuple[dict[int, Any], list[float]]:
         answers: dict[int, Any] = {}

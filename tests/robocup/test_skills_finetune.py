@@ -49,6 +49,12 @@ def _ball(c: int) -> tuple[float, float]:
     return (-20.0 + 3.0 * c, 4.0)
 
 
+def _metric(run: Path, name: str) -> list[float]:
+    """Every logged value of ``name`` in the run's metrics.csv (step, name, value rows)."""
+    with open(run / "metrics.csv", encoding="utf-8") as f:
+        return [float(row["value"]) for row in csv.DictReader(f) if row["name"] == name]
+
+
 class _SlowOnce:
     """The recorder, with the decision of one cycle held past the deadline."""
 
@@ -75,10 +81,11 @@ def test_server_cycles_pack_into_the_learners_rollout(tmp_path: Path) -> None:
     # recorded: 2 before the kick-off (everyone placed: a routine), 3..8 in play, our goal
     # announced at 5 (scored in step 4->5), theirs at 7; at 6 the decision misses its
     # deadline (the default plays); at 8 player 9 does not ask.
-    slow = _SlowOnce(recorder, cycle=6, seconds=2.5)
-    with DecisionServer(slow, deadline_s=2.0, gather_s=1.0,
+    # Deadlines of seconds: a busy machine's decisions must not miss them but at cycle 6.
+    slow = _SlowOnce(recorder, cycle=6, seconds=12.0)
+    with DecisionServer(slow, deadline_s=10.0, gather_s=5.0,
                         on_default=recorder.defaulted) as server:
-        team = FakeTeam(server.port)
+        team = FakeTeam(server.port, timeout_ms=120_000)
         try:
             team.cycle(Scene(ball=_ball(1), cycle=1))
             carry_before = jax.tree.map(np.asarray, recorder.carry)
@@ -94,7 +101,7 @@ def test_server_cycles_pack_into_the_learners_rollout(tmp_path: Path) -> None:
             team.close()
         stats = server.stats()
     assert stats.defaults == 11 and segment.cycles == STEPS + 1
-    assert {shirt for (_, shirt) in segment.defaulted} == set(range(1, 12))
+    assert segment.defaulted == {(0, 6, shirt) for shirt in range(1, 12)}
 
     rollout, counts = pack([segment], STEPS, learner.policy, games.params, shaping=False)
     t = rollout.transitions
@@ -149,24 +156,30 @@ def test_a_player_that_does_not_ask_is_filled_in_and_a_new_match_starts_an_episo
     state = policy.init(jax.random.key(0))
     recorder = Recorder(policy.policy, seed=1)
     recorder.set_params(state.params.policy)
-    with DecisionServer(recorder, deadline_s=20.0, gather_s=1.0) as server:
-        team = FakeTeam(server.port)
+    recorder.warm_up()
+    with DecisionServer(recorder, deadline_s=60.0, gather_s=3.0) as server:
+        team = FakeTeam(server.port, timeout_ms=120_000)
         try:
             recorder.start()
             for c in range(1, 5):  # a match at 1 - 0 ends after cycle 4
                 team.cycle(Scene(ball=_ball(c), cycle=c, score=(1, 0)),
                            skip=(9,) if c == 3 else ())
             recorder.new_match()
-            for c in range(1, 4):  # a fresh one at 0 - 0 from cycle 1
-                team.cycle(Scene(ball=_ball(c), cycle=c))
+            for c in (0, 0, 1):  # a fresh one at 0 - 0: the clock stands before its kick-off
+                team.cycle(Scene(ball=_ball(c), cycle=c, mode=0 if c == 0 else 2))
             segment = recorder.stop()
         finally:
             team.close()
     rollout, counts = pack([segment], STEPS, policy.policy, SkillGames(config).params,
                            shaping=True)
+    assert sorted(segment.rows)[3:] == [(0, 4, 0), (1, 0, 0), (1, 0, 1), (1, 1, 0)]
     scripted = np.asarray(rollout.scripted)
-    assert scripted[8, 2] and counts[0]["filled"] == 1 and counts[0]["matches"] == 2
-    assert scripted[0].all() and not scripted[1:8].any() and not scripted[9:].any()
+    assert counts[0]["filled"] == 1 and counts[0]["matches"] == 2
+    expected = np.zeros((11, STEPS), bool)
+    expected[0] = True  # the goalie
+    expected[8, 2] = True  # the player that did not ask
+    expected[:, 4:] = True  # the placing before the kick-off
+    np.testing.assert_array_equal(scripted, expected)
     # Its stand-in is its step before, and the shaping of a still ball and players is 0.
     obs = np.asarray(rollout.transitions.obs.self_features)
     np.testing.assert_array_equal(obs[8, 2], obs[8, 1])
@@ -200,7 +213,7 @@ class _FakeMatch:
         self.thread.start()
 
     def _play(self) -> None:
-        team = FakeTeam(self.decision.port)
+        team = FakeTeam(self.decision.port, timeout_ms=120_000)
         try:
             for c in range(1, self.cycles + 1):
                 if not self.running:
@@ -237,10 +250,8 @@ def test_the_host_loop_trains_on_matches_and_starts_a_fresh_one_when_one_ends(
     assert [r["iteration"] for r in rows] == ["1", "2"]
     assert rows[0]["goals_for"] == "1" and rows[0]["matches"] == "1"
     assert rows[1]["restarts"] == "1" and rows[1]["matches"] == "1"
-    with open(tmp_path / "run" / "metrics.csv", encoding="utf-8") as f:
-        metrics = list(csv.DictReader(f))
     # The learner's improve ran on both packed rollouts.
-    losses = [float(m["train/loss"]) for m in metrics if m.get("train/loss")]
+    losses = _metric(tmp_path / "run", "train/loss")
     assert len(losses) == 2 and np.isfinite(losses).all()
     assert result.checkpoint is not None and result.checkpoint.exists()
 
@@ -279,6 +290,5 @@ def test_fine_tuning_plays_helios_base_in_the_server(tmp_path: Path) -> None:
     })
     result = train_skills(config, progress=False)
     assert result.iteration == 1 and result.env_steps == 40 and result.matches == 1
-    with open(tmp_path / "run" / "metrics.csv", encoding="utf-8") as f:
-        metrics = list(csv.DictReader(f))
-    assert np.isfinite(float(metrics[-1]["train/loss"]))
+    losses = _metric(tmp_path / "run", "train/loss")
+    assert len(losses) == 1 and np.isfinite(losses).all()

@@ -130,7 +130,8 @@ def skills_train(args: RoboCupSkillsTrainArgs) -> None:
         exit_with_error(name, error, 2)
     print(
         f"robocup train {PRESET}: {result.iteration} iterations, {result.env_steps} env "
-        f"steps, {result.matches} matches in {result.wall_s:.0f} s; checkpoint "
+        f"steps, {result.matches} match{'' if result.matches == 1 else 'es'} in "
+        f"{result.wall_s:.0f} s; checkpoint "
         f"{result.checkpoint}"
     )
     if result.interrupted:

@@ -16,8 +16,9 @@ this cycle and the next, read from the referee's score in the world model, for e
 of the team, plus the shaping terms in force, computed from the team's merged world model.
 Where the policy's sample was not what the player did, the step leaves PPO's policy terms
 (``Rollout.scripted``): a routine played (kick-off placing, set plays, the goalie, penalties,
-the proxy's own perception fallbacks), the request missed its deadline and got the default,
-or the player did not ask that cycle (its step is then a copy of its nearest one).
+the proxy's own perception fallbacks, a player not yet placed), the request missed its
+deadline and got the default, or the player did not ask that cycle (its step is then a copy of
+its nearest one).
 """
 
 from __future__ import annotations
@@ -47,7 +48,11 @@ from elevens.train.rollout import Rollout, StepRecord, collected
 __all__ = ["Recorder", "Segment", "pack", "routine_played"]
 
 _PLAY_ON = 2  # the proxy's GameModeType of open play
-Key = tuple[int, int, int]  # (match, cycle, stopped cycle): one server cycle of one match
+# (match, server cycle, the player's request within that cycle): one step of one match. The
+# clock stands before a kick-off, where each player asks once a cycle as in play; librcsc's
+# stopped-cycle count differs between players that connected at different times, the
+# number of requests made since the clock stopped does not (up to the late joiners' first).
+Key = tuple[int, int, int]
 
 
 def routine_played(obs: SkillObservation) -> np.ndarray:
@@ -57,6 +62,22 @@ def routine_played(obs: SkillObservation) -> np.ndarray:
     (``need_preprocess``: they replace the action)."""
     return ((np.asarray(obs.mode) != _PLAY_ON) | np.asarray(obs.goalie)
             | np.asarray(obs.penalty) | np.asarray(obs.need_preprocess))
+
+
+def _finite(obs: SkillObservation) -> tuple[SkillObservation, np.ndarray]:
+    """``obs`` with every value librcsc has not placed yet (its invalid vector, DBL_MAX, is
+    inf as float32: a player before its first see) set to 0, and bool[m]: the rows that had
+    one (the policy decides on a world it does not know: masked like a routine)."""
+    bad = np.zeros(len(obs), bool)
+    fields: dict[str, np.ndarray] = {}
+    for name, value in vars(obs).items():
+        a = np.asarray(value)
+        if a.dtype.kind == "f":
+            finite = np.isfinite(a)
+            bad |= ~finite.reshape(len(obs), -1).all(axis=1)
+            a = np.where(finite, a, 0.0).astype(a.dtype)
+        fields[name] = a
+    return SkillObservation(**fields), bad
 
 
 @dataclasses.dataclass
@@ -79,7 +100,7 @@ class Segment:
 
     rows: dict[Key, dict[int, _Row]]
     initial: dict[int, Any]  # shirt -> its carry's leaves (no leading axis)
-    defaulted: set[tuple[Key, int]]
+    defaulted: set[tuple[int, int, int]]  # (match, cycle, shirt)
 
     @property
     def cycles(self) -> int:
@@ -110,6 +131,7 @@ class Recorder:
         self._recording = threading.Event()
         self._after: Key = (-1, -1, -1)  # the latest key seen: recording starts after it
         self._latest: Key = (-1, -1, -1)
+        self._asked: dict[int, tuple[int, int]] = {}  # shirt -> (its last cycle, requests)
         self._segment = Segment({}, {}, set())
         self._step = jax.jit(self._policy_step)
 
@@ -128,6 +150,7 @@ class Recorder:
         with self._lock:
             self.match += 1
             self.carry = self.policy.initial_carry((1, PLAYERS))
+            self._asked = {}
 
     def start(self) -> None:
         """Record every cycle that begins from now on."""
@@ -153,10 +176,10 @@ class Recorder:
         me = None if wm is None else wm.myself
         if me is None:
             return
-        key = (self.match, int(wm.cycle or 0), int(wm.stoped_cycle or 0))
         with self._lock:
-            if self._recording.is_set() and key > self._after:
-                self._segment.defaulted.add((key, int(me.uniform_number or 0)))
+            if self._recording.is_set():
+                self._segment.defaulted.add(
+                    (self.match, int(wm.cycle or 0), int(me.uniform_number or 0)))
 
     # ---- deciding (the decision server's thread) ----
 
@@ -192,7 +215,8 @@ class Recorder:
         shirt number; a batch holding a player twice is decided in order)."""
         if self.hold_s > 0 and not self._recording.is_set():
             self._recording.wait(self.hold_s)
-        obs = observe(states)
+        with np.errstate(over="ignore"):  # librcsc's unplaced values: _finite
+            obs, unplaced = _finite(observe(states))
         view = sim_observation(obs, self.field, episode_length=self.episode_length)
         unum = np.asarray(obs.unum)
         with self._lock:
@@ -227,17 +251,24 @@ class Recorder:
             log_prob[rows] = np.asarray(logp)[0, slot]
             left = later
         decisions = skill_decisions(obs, actions, np.asarray(view.entity_mask), self.field)
-        self._record(states, obs, view, pre_tanh, log_prob, before, match)
+        self._record(states, obs, view, pre_tanh, log_prob, before, match, unplaced)
         return to_player_actions(decisions, obs)
 
     def _record(self, states: Sequence[Any], obs: SkillObservation, view: Observation,
                 pre_tanh: np.ndarray, log_prob: np.ndarray, before: list[Any],
-                match: int) -> None:
-        routine = routine_played(obs)
-        keys = [(match, int(c), int(s)) for c, s in zip(obs.cycle, obs.stopped, strict=True)]
+                match: int, unplaced: np.ndarray) -> None:
+        routine = routine_played(obs) | unplaced
         with self._lock:
+            if match != self.match:
+                return  # decided for a match that has ended
+            keys = []
+            for shirt, cycle in zip(obs.unum.tolist(), obs.cycle.tolist(), strict=True):
+                last, count = self._asked.get(shirt, (-1, 0))
+                count = count + 1 if cycle == last else 0
+                self._asked[shirt] = (cycle, count)
+                keys.append((match, cycle, count))
             self._latest = max([self._latest, *keys])
-            if not self._recording.is_set() or match != self.match:
+            if not self._recording.is_set():
                 return
             segment = self._segment
             for i, key in enumerate(keys):
@@ -362,7 +393,7 @@ def _game(segment: Segment, steps: int, params: EnvParams, field: Field,
             filled = row is None
             if row is None:  # it did not ask: its nearest step stands in, masked
                 row = _nearest(segment.rows, keys[:steps], t, shirt) or next(iter(rows.values()))
-            defaulted = (key, shirt) in segment.defaulted
+            defaulted = (key[0], key[1], shirt) in segment.defaulted
             counts["filled"] += filled
             counts["defaulted"] += defaulted and not filled
             counts["routine"] += row.routine and not (filled or defaulted)

@@ -227,6 +227,9 @@ class _FakeMatch:
     def alive(self) -> bool:
         return self.running
 
+    def missed_cycles(self) -> int:
+        return 0
+
     def stop(self) -> None:
         self.running = False
         if self.thread is not None:
@@ -250,6 +253,7 @@ def test_the_host_loop_trains_on_matches_and_starts_a_fresh_one_when_one_ends(
     assert [r["iteration"] for r in rows] == ["1", "2"]
     assert rows[0]["goals_for"] == "1" and rows[0]["matches"] == "1"
     assert rows[1]["restarts"] == "1" and rows[1]["matches"] == "1"
+    assert rows[1]["missed"] == "0"
     # The learner's improve ran on both packed rollouts.
     losses = _metric(tmp_path / "run", "train/loss")
     assert len(losses) == 2 and np.isfinite(losses).all()
@@ -292,3 +296,6 @@ def test_fine_tuning_plays_helios_base_in_the_server(tmp_path: Path) -> None:
     assert result.iteration == 1 and result.env_steps == 40 and result.matches == 1
     losses = _metric(tmp_path / "run", "train/loss")
     assert len(losses) == 1 and np.isfinite(losses).all()
+    with open(tmp_path / "run" / "episodes.csv", encoding="utf-8") as f:
+        (row,) = list(csv.DictReader(f))
+    assert row["steps"] == "40" and row["matches"] == "1" and int(row["missed"]) >= 0

@@ -32,7 +32,7 @@ from typing import Any
 
 import jax
 
-from elevens.robocup.external import start_team, stop_team, wait_connected
+from elevens.robocup.external import read_text, start_team, stop_team, wait_connected
 from elevens.robocup.match import MATCH_OPTIONS
 from elevens.robocup.server import ServerProcess
 from elevens.robocup.skills.decode import SKILL_ACTION_SIZE
@@ -59,12 +59,13 @@ TEAM_NAME = "elevens"
 PRESET = "skills-11v11"
 SKILLS_EPISODE_FIELDS = (
     "iteration", "game", "match", "goals_for", "goals_against", "steps", "routine",
-    "defaulted", "filled", "matches", "restarts", "wall_s",
+    "defaulted", "filled", "matches", "restarts", "missed", "wall_s",
 )
 """Columns of episodes.csv: per game and iteration, the goals of the segment, the player-steps
 a routine played (masked), that got the deadline's default (masked) or were filled in for a
-player that did not ask (masked), the matches it spans and the fresh matches started during
-it (the last one ended, or its server died)."""
+player that did not ask (masked), the matches it spans, the fresh matches started during
+it (the last one ended, or its server died) and the cycles the server has gone on without a
+player's (done) in the current match so far (rcssserver's "missed a cycle")."""
 _SERVER_WAIT_S = 1.25  # rcssserver's wait for its players' (done) each synch cycle
 _STALL_S = 60.0  # no new cycle for this long: the game is restarted
 
@@ -220,6 +221,10 @@ class ServerMatch:
     def alive(self) -> bool:
         return self.server is not None and self.server.alive
 
+    def missed_cycles(self) -> int:
+        """The cycles this match's server went on without some player's (done)."""
+        return read_text(self.folder / "rcssserver.log").count("missed a cycle")
+
     def stop(self) -> None:
         for proc in self.teams:
             stop_team(proc)
@@ -314,7 +319,7 @@ class SkillGames:
             writer.writerow((iteration, g, self.games[g][0].match, c["goals_for"],
                              c["goals_against"], steps, c["routine"], c["defaulted"],
                              c["filled"], c["matches"], restarts[g],
-                             f"{played - self.began:.1f}"))
+                             self.games[g][2].missed_cycles(), f"{played - self.began:.1f}"))
         self.csv.flush()
         total = steps * PLAYERS * len(counts)
         row = {f"robocup/{name}": sum(c[name] for c in counts) / total

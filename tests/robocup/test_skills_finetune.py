@@ -189,6 +189,12 @@ def test_a_player_that_does_not_ask_is_filled_in_and_a_new_match_starts_an_episo
     assert not np.asarray(t.reward).any() and int(rollout.goals_against[0]) == 0
     np.testing.assert_array_equal(np.asarray(t.done)[0], [0, 0, 0, 1, 0, 1])
     np.testing.assert_array_equal(np.asarray(t.reset)[0], [0, 0, 0, 0, 1, 0])
+    # Several servers: their games side by side, games outermost (unit g * 11 + k).
+    both, _ = pack([segment, segment], STEPS, policy.policy, SkillGames(config).params,
+                   shaping=False)
+    assert both.transitions.reward.shape == (22, STEPS) and both.goals_for.shape == (2,)
+    assert jax.tree.leaves(both.transitions.initial_carry)[0].shape == (22, 8)
+    np.testing.assert_array_equal(np.asarray(both.scripted)[11:], scripted)
     with pytest.raises(ValueError, match="a segment of 7 cycles cannot give 7 steps"):
         pack([segment], STEPS + 1, policy.policy, SkillGames(config).params, shaping=False)
 

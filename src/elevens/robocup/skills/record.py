@@ -49,9 +49,10 @@ __all__ = ["Recorder", "Segment", "pack", "routine_played"]
 
 _PLAY_ON = 2  # the proxy's GameModeType of open play
 # (match, server cycle, the player's request within that cycle): one step of one match. The
-# clock stands before a kick-off, where each player asks once a cycle as in play; librcsc's
-# stopped-cycle count differs between players that connected at different times, the
-# number of requests made since the clock stopped does not (up to the late joiners' first).
+# clock stands before a kick-off while each player still asks once a cycle; librcsc's
+# stopped-cycle count differs between players that connected at different times, and so does
+# this count for a player that joined late (its steps there are filled in; all of them are
+# the kick-off placing's, masked anyway). In play every player asks once a cycle: count 0.
 Key = tuple[int, int, int]
 
 

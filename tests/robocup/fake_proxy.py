@@ -73,6 +73,7 @@ class Scene:
     cycle: int = 1
     kickable: int = 0  # our shirt number with the ball (0: none)
     kickable_opponent: bool = False
+    score: tuple[int, int] = (0, 0)  # ours, theirs, as the referee announced them
 
 
 def _v(m: Any, xy: Sequence[float], me: Sequence[float] | None = None) -> Any:
@@ -131,7 +132,8 @@ def state(scene: Scene, unum: int) -> Any:
         teammates=mates, opponents=opps, their_goalie_uniform_number=1,
         offside_line_x=float(max(np.sort(scene.theirs[:, 0])[-2], ball[0], 0.0)),
         cycle=scene.cycle, game_mode_type=scene.mode, is_our_set_play=False, stoped_cycle=0,
-        our_team_score=0, their_team_score=0, is_penalty_kick_mode=False,
+        our_team_score=scene.score[0], their_team_score=scene.score[1],
+        is_penalty_kick_mode=False,
         kickable_teammate_existance=scene.kickable not in (0, unum),
         kickable_opponent_existance=scene.kickable_opponent, **extra,
     )
@@ -174,8 +176,8 @@ class FakeTeam:
     """Eleven players, each on its own thread; :meth:`cycle` sends one State each at once
     (as in synch mode) and returns the answers by shirt number and the round trips."""
 
-    def __init__(self, port: int, players: int = 11) -> None:
-        self.players = [FakePlayer(port, unum) for unum in range(1, players + 1)]
+    def __init__(self, port: int, players: int = 11, timeout_ms: int = 5000) -> None:
+        self.players = [FakePlayer(port, unum, timeout_ms) for unum in range(1, players + 1)]
 
     def cycle(self, scene: Scene, skip: Sequence[int] = ()) -> tuple[dict[int, Any], list[float]]:
         answers: dict[int, Any] = {}

@@ -213,13 +213,21 @@ def main(argv: list[str] | None = None) -> None:
         argv = [f"{argv[0]}-{argv[1]}", *argv[2:]]
     if argv and argv[0] == "train":
         argv = ["train", *command_flags_first(argv[1:])]
+    try:  # `robocup train skills-11v11 ...`: the skills fine-tuning's own flags
+        argv = robocup_skills_commands.skills_train_argv(argv)
+    except ValueError as error:
+        print(f"elevens robocup train: error: {one_line(error)}", file=sys.stderr)
+        raise SystemExit(EXIT_BAD_INPUT) from None
     name = argv[0] if argv else ""
     if name.startswith(("bench-", "robocup-")):
         name = name.replace("-", " ", 1)
     command = f"elevens {name}".rstrip()
+    if argv[:1] == [robocup_skills_commands.TRAIN_COMMAND]:
+        command = f"elevens robocup train {robocup_skills_commands.PRESET}"
     args = _parse(argv, command, debug)
     # `robocup team` joins someone else's server: it needs their network.
-    if from_command_line and isinstance(args, robocup_commands.STARTS_A_SERVER):
+    starts = (*robocup_commands.STARTS_A_SERVER, *robocup_skills_commands.STARTS_A_SERVER)
+    if from_command_line and isinstance(args, starts):
         from elevens.robocup.isolation import enter_private_network
 
         # rcssserver listens on every interface: the command goes on in a network of its own.

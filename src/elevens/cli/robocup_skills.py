@@ -1,12 +1,19 @@
 """`elevens robocup skills-team`: a skills team (elevens decides, the proxy's players execute
-librcsc's skills) joins a running rcssserver."""
+librcsc's skills) joins a running rcssserver; `elevens robocup train skills-11v11`: a skills
+team fine-tuned in matches against another team's binaries."""
 
 from __future__ import annotations
 
 import json as json_lib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import Annotated
 
-from elevens.cli.checks import Commands
+import tyro
+
+from elevens.cli.checks import EXIT_INTERRUPTED, Commands, exit_with_error
+from elevens.robocup.skills.finetune import PRESET, SkillsTrainConfig
+
+TRAIN_COMMAND = "robocup-train-skills"
 
 
 @dataclass(frozen=True)
@@ -76,5 +83,66 @@ def skills_team(args: RoboCupSkillsTeamArgs) -> None:
         )
 
 
-COMMANDS: Commands = {"robocup-skills-team": (RoboCupSkillsTeamArgs, skills_team)}
-"""The skills team's subcommand."""
+@dataclass(frozen=True)
+class RoboCupSkillsTrainArgs:
+    """Fine-tune a skills team in rcssserver (`elevens robocup train skills-11v11`): real
+    matches against --server.opponent-cmd, one server per game of an iteration, our eleven
+    proxy players deciding with the learner's sampled policy. The flags are elevens train
+    skills-11v11's (--env.*, --network.*, --ppo.*, --games-per-iteration, --run.* with
+    --run.init-from a skills checkpoint) and the matches' (--server.*)."""
+
+    config: Annotated[SkillsTrainConfig, tyro.conf.arg(name="")] = SkillsTrainConfig()
+    """The run: the skill game's learner and host loop, and the matches."""
+    resume: bool = False
+    """Continue the latest checkpoint of --run.run-dir (its config must match)."""
+
+
+def skills_train_argv(argv: list[str]) -> list[str]:
+    """``robocup-train PRESET ...`` with a skills preset as this module's command line; any
+    other command line as it is. A skills preset the server cannot play is a ValueError."""
+    if argv[:1] != ["robocup-train"] or len(argv) < 2 or not argv[1].startswith("skills-"):
+        return argv
+    if argv[1] != PRESET:
+        raise ValueError(
+            f"preset {argv[1]!r} is invalid in elevens robocup train: the skills proxy plays "
+            f"11 a side; use {PRESET} (a 2 v 2 policy starts it with --run.init-from RUN)")
+    return [TRAIN_COMMAND, *argv[2:]]
+
+
+def skills_train(args: RoboCupSkillsTrainArgs) -> None:
+    from elevens.robocup.server import find_rcssserver
+    from elevens.robocup.skills.finetune import train_skills
+    from elevens.robocup.skills.proxy import find_proxy
+    from elevens.runs.errors import RunRefusedError
+    from elevens.train.checkpoint import CheckpointError
+
+    name = f"elevens robocup train {PRESET}: error"
+    try:  # bad input first, before the server and the proxy are looked for
+        args.config.validate()
+    except ValueError as error:
+        exit_with_error(name, error, 2)
+    find_proxy(args.config.server.proxy)
+    server = replace(args.config.server,
+                     rcssserver=find_rcssserver(args.config.server.rcssserver))
+    try:
+        result = train_skills(replace(args.config, server=server), resume=args.resume)
+    except (RunRefusedError, CheckpointError) as error:
+        exit_with_error(name, error, 2)
+    print(
+        f"robocup train {PRESET}: {result.iteration} iterations, {result.env_steps} env "
+        f"steps, {result.matches} match{'' if result.matches == 1 else 'es'} in "
+        f"{result.wall_s:.0f} s; checkpoint "
+        f"{result.checkpoint}"
+    )
+    if result.interrupted:
+        raise SystemExit(EXIT_INTERRUPTED)
+
+
+COMMANDS: Commands = {
+    "robocup-skills-team": (RoboCupSkillsTeamArgs, skills_team),
+    TRAIN_COMMAND: (RoboCupSkillsTrainArgs, skills_train),
+}
+"""The skills team's subcommands."""
+
+STARTS_A_SERVER = (RoboCupSkillsTrainArgs,)
+"""The commands here that start rcssserver."""

@@ -143,8 +143,9 @@ class _Connection:
 class DecisionServer:
     """Serve ``decide`` to a team's proxy players on ``host:port`` (port 0: a free one, see
     :attr:`port`). ``players``: how many players of a cycle to wait for at most (the
-    connected players, when fewer are connected). Start with :meth:`start`, stop with
-    :meth:`close`, or use it as a context manager."""
+    connected players, when fewer are connected). ``on_default(state)``: told of every
+    request answered by the default instead of ``decide`` (a recorder masks those cycles).
+    Start with :meth:`start`, stop with :meth:`close`, or use it as a context manager."""
 
     def __init__(
         self,
@@ -156,6 +157,7 @@ class DecisionServer:
         deadline_s: float = 0.040,
         gather_s: float = 0.015,
         coach_substitutes: bool = True,
+        on_default: Callable[[Any], None] | None = None,
     ) -> None:
         if not 0.0 < gather_s < deadline_s:
             raise ValueError(
@@ -169,6 +171,7 @@ class DecisionServer:
         self.deadline_s = deadline_s
         self.gather_s = gather_s
         self.coach_substitutes = coach_substitutes
+        self.on_default = on_default
         self._listener = socket.create_server((host, port), backlog=32)
         self.host, self.port = self._listener.getsockname()[:2]
         self._lock = threading.Condition()
@@ -283,6 +286,7 @@ class DecisionServer:
                     request.answer = default_actions(state)
                     request.done.set()
                     self._defaults += 1
+                    self._defaulted(state)
         with self._lock:
             self._latency.append(time.perf_counter() - request.arrived)
         return request.answer
@@ -341,8 +345,16 @@ class DecisionServer:
                 if answer is None:
                     answer = default_actions(r.state)
                     self._defaults += 1
+                    self._defaulted(r.state)
                 r.answer = answer
                 r.done.set()
+
+    def _defaulted(self, state: Any) -> None:
+        if self.on_default is not None:
+            try:
+                self.on_default(state)
+            except Exception:  # a recorder's failure must not take the team down
+                _log.exception("on_default failed")
 
     # ---- reports ----
 

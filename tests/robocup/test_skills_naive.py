@@ -8,7 +8,14 @@ import dataclasses
 import numpy as np
 import pytest
 
-from elevens.robocup.skills.naive import FORMATION, skills_naive_decisions, slot_targets
+from elevens.robocup.skills.naive import (
+    ATTACK_PUSH,
+    DEEPEST,
+    DEFEND_DROP,
+    FORMATION,
+    skills_naive_decisions,
+    slot_targets,
+)
 from elevens.robocup.skills.observe import Observation, observe
 from elevens.robocup.skills.space import Decisions, Kind, pass_speed, to_player_actions
 from tests.robocup.fake_proxy import OURS, THEIRS, Scene, state
@@ -125,9 +132,60 @@ def test_while_they_have_the_ball_the_next_nearest_covers_goal_side() -> None:
     assert list(dec.kind) == [Kind.GO_TO, Kind.GO_TO, Kind.INTERCEPT]
     assert dec.point[1] == pytest.approx((-23.5, 0.0))  # 3 m towards our goal
     assert dec.point[0, 0] < -25.0  # player 3 keeps its slot
-    theirs[9] = THEIRS[9]  # a loose ball nobody of theirs reaches first: no cover
-    _, loose = _decide(Scene(ours=ours, theirs=theirs, ball=(-20.5, 0.0)), 7)
-    assert loose.point[0, 0] < -25.0
+    theirs[9] = THEIRS[9]  # a loose ball we reach first: no cover, the slot steps up
+    obs, loose = _decide(Scene(ours=ours, theirs=theirs, ball=(-20.5, 0.0)), 7)
+    slot = slot_targets(obs.unum, obs.ball, obs.offside_x)[0]
+    assert loose.kind[0] == Kind.GO_TO
+    assert loose.point[0] == pytest.approx(slot + (ATTACK_PUSH, 0.0))
+
+
+def test_while_they_have_the_ball_the_block_is_deeper_and_narrower() -> None:
+    theirs = THEIRS.copy()
+    theirs[9] = (0.0, 15.0)  # on the ball at the centre line, on our left
+    unums = (2, 5, 7, 9)  # none of them near the ball
+    held = Scene(theirs=theirs, ball=(0.5, 15.0), kickable_opponent=True)
+    obs, dec = _decide(held, *unums)
+    assert (dec.kind == Kind.GO_TO).all()
+    slots = slot_targets(obs.unum, obs.ball, obs.offside_x)
+    assert np.allclose(dec.point[:, 0], slots[:, 0] - DEFEND_DROP)
+    assert np.ptp(dec.point[:, 1]) < np.ptp(slots[:, 1]) - 10.0  # narrower
+    # drawn to the ball's side: every slot nearer the ball's y
+    assert (np.abs(dec.point[:, 1] - 15.0) < np.abs(slots[:, 1] - 15.0) - 4.0).all()
+    theirs[9] = (-40.5, 15.0)
+    _, dec = _decide(Scene(theirs=theirs, ball=(-40.0, 15.0), kickable_opponent=True), 3)
+    assert dec.point[0, 0] == pytest.approx(DEEPEST)  # not on the goal line
+
+
+def test_free_defenders_mark_the_attackers_in_our_third() -> None:
+    ours, theirs = OURS.copy(), THEIRS.copy()
+    theirs[9] = (-25.0, -20.0)  # on the ball
+    theirs[10] = (-30.0, -5.0)  # free in our third, nearest player 4 (-32, -7)
+    theirs[6] = (-10.0, 5.0)  # in the middle: not marked
+    ours[5] = (-24.0, -18.0)  # player 6 intercepts, player 2 covers
+    ours[1] = (-27.0, -18.0)
+    held = Scene(ours=ours, theirs=theirs, ball=(-25.5, -20.0), kickable_opponent=True)
+    obs, dec = _decide(held, 2, 3, 4, 7, 10)
+    assert dec.kind[2] == Kind.MARK and dec.index[2] == 11
+    assert (np.delete(dec.kind, 2) != Kind.MARK).all()  # one marker; the forward never marks
+    go = to_player_actions(dec, obs)[2].actions[0].body_go_to_point
+    assert go.target_point.x < -30.0  # goal-side of the attacker
+    _, ours_now = _decide(dataclasses.replace(held, kickable=6, kickable_opponent=False), 4)
+    assert ours_now.kind[0] == Kind.GO_TO  # with the ball ours, nobody marks
+
+
+def test_passes_from_our_third_need_a_wider_lane_and_never_go_across_it() -> None:
+    theirs = FAR_OPPONENTS.copy()
+    holder = (-35.0, -10.0)
+    across = _holder_scene(holder, theirs, forward={3: (-32.0, 10.0)})
+    _, dec = _decide(across, 6)
+    assert dec.kind[0] != Kind.PASS  # 20 m across our box, 3 m forward
+    theirs[1] = (-25.0, -6.0)  # 4 m from the lane to player 7
+    tight = _holder_scene(holder, theirs, forward={7: (-15.0, -4.0)})
+    _, dec = _decide(tight, 6)
+    assert dec.kind[0] != Kind.PASS
+    theirs[1] = FAR_OPPONENTS[1]
+    _, dec = _decide(_holder_scene(holder, theirs, forward={7: (-15.0, -4.0)}), 6)
+    assert (dec.kind[0], dec.index[0]) == (Kind.PASS, 7)
 
 
 def test_runs_to_a_point_are_paced_by_stamina() -> None:

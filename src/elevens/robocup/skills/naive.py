@@ -6,12 +6,17 @@ In open play (vectorised over every deciding player, one call a cycle):
   of the goal mouth farthest (in angle) from every opponent; else passes forward to the most
   open teammate (widest gap between the passing lane and any opponent, onside, 4 to 35 m
   away); else dribbles in the direction of the eight nearest the goal whose path is clear;
-  when every forward path is blocked by an opponent at arm's length, it holds;
+  when every forward path is blocked by an opponent at arm's length, it holds. From our
+  third a pass needs a wider lane (:data:`SAFE_GAP`) and never goes across our box;
 - otherwise the player who reaches the ball first by librcsc's intercept table intercepts,
   unless a teammate already has it; one with a good chance tackles an opponent who has it;
   while they have the ball, the nearest other outfield player (two, when the interceptor is
-  not the nearest) stands :data:`COVER_DISTANCE` goal-side of it;
-- everyone else goes to a formation slot that slides with the ball (kept onside).
+  not the nearest) stands :data:`COVER_DISTANCE` goal-side of it, and the free defenders
+  and midfielders mark the attackers in our third (:func:`_marks`);
+- everyone else goes to a formation slot that slides with the ball (kept onside): while we
+  have the ball, stepped up :data:`ATTACK_PUSH`; while they have it, a block
+  :data:`DEFEND_DROP` deeper and narrower, drawn to the ball's side, never deeper than
+  :data:`DEEPEST` (:func:`_slots`).
 
 Before a kick-off the players move to their slots in their own half. The goalie plays the
 proxy's ready goalie behaviour in every mode but the kick-off placing, and set pieces and
@@ -38,7 +43,8 @@ from elevens.robocup.skills.space import (
 )
 
 __all__ = [
-    "FORMATION", "SHOOT_RANGE", "SLIDE", "kick_off_points", "naive_choices", "outside_open_play",
+    "ATTACK_PUSH", "DEEPEST", "DEFEND_DROP", "FORMATION", "SHOOT_RANGE", "SLIDE",
+    "kick_off_points", "naive_choices", "outside_open_play",
     "skills_naive", "skills_naive_decisions", "slot_targets",
 ]
 
@@ -49,6 +55,13 @@ DRIBBLE_CLEAR = 6.0  # metres of dribble path that must be free of opponents
 PRESSED = 2.5  # an opponent this close blocks every dribble: hold
 TACKLE_PROBABILITY = 0.7
 COVER_DISTANCE = 3.0  # metres from the ball towards our goal, while they have it
+DEFEND_DROP = 6.0  # metres the slots fall back while they have the ball
+DEFEND_NARROW = 0.6  # the share of the slots' width kept then, the rest drawn to the ball
+DEFEND_BALL_Y = 0.5  # how far the slots follow the ball across then (SLIDE's 0.3 otherwise)
+DEEPEST = -45.0  # no slot deeper than this x: the goal line is the goalie's
+ATTACK_PUSH = 5.0  # metres the slots step up while we have it (still onside)
+OUR_THIRD = -17.5  # x below which the attackers are marked and the passes are safer
+SAFE_GAP = 5.0  # OPEN_ENOUGH of a pass from our third
 _OUR_GOAL = np.array([-52.5, 0.0], np.float32)
 _GOAL_YS = np.linspace(-GOAL_HALF_WIDTH + 1.0, GOAL_HALF_WIDTH - 1.0, 5).astype(np.float32)
 _PLAY_ON, _BEFORE_KICK_OFF, _AFTER_GOAL = 2, 0, 8
@@ -89,7 +102,12 @@ def _best_pass(obs: Observation, xp: Any = np) -> tuple[Any, Any]:
     ).reshape(n, PLAYERS, PLAYERS)  # [n, receiver, opponent]
     gap = xp.where(obs.opps_valid[:, None, :], lanes, np.inf).min(-1)  # [n, 11]
     me = xp.arange(1, PLAYERS + 1)[None] == obs.unum[:, None]
-    ok = (
+    # From our third: a wider lane, and nothing across our box (forward at least half of
+    # the sideways distance).
+    deep = (obs.pos[:, 0] < OUR_THIRD)[:, None]
+    across = xp.abs(receivers[..., 1] - obs.pos[:, None, 1])
+    safe = ~deep | ((gap >= SAFE_GAP) & (receivers[..., 0] - obs.pos[:, None, 0] >= 0.5 * across))
+    ok = safe & (
         obs.mates_valid & ~me & (xp.arange(PLAYERS) > 0)[None]  # never back to the goalie
         & (receivers[..., 0] > obs.pos[:, None, 0])  # forward
         & (receivers[..., 0] < xp.maximum(obs.offside_x, 0.0)[:, None])  # onside
@@ -120,6 +138,47 @@ def _dribble(obs: Observation, xp: Any = np) -> tuple[Any, Any]:
     return xp.argmax(xp.where(ok, align, -np.inf), axis=1).astype(xp.int32), xp.any(ok, axis=1)
 
 
+def _slots(obs: Observation, defending: Any, xp: Any = np) -> Any:
+    """Each player's slot [n, 2]: :func:`slot_targets`, stepped up by :data:`ATTACK_PUSH`
+    while we have the ball; while they have it, a deeper, narrower block drawn to the ball's
+    side (no slot deeper than :data:`DEEPEST`)."""
+    base = slot_targets(obs.unum, obs.ball, obs.offside_x, xp)
+    home = xp.asarray(FORMATION)[obs.unum - 1]
+    onside = xp.maximum(obs.offside_x - 1.0, 0.0)
+    attack_x = xp.minimum(base[:, 0] + ATTACK_PUSH, xp.maximum(onside, base[:, 0]))
+    defend_x = xp.maximum(base[:, 0] - DEFEND_DROP, DEEPEST)
+    defend_y = xp.clip(DEFEND_NARROW * home[:, 1] + DEFEND_BALL_Y * obs.ball[:, 1], -32.0, 32.0)
+    return xp.stack([xp.where(defending, defend_x, attack_x),
+                     xp.where(defending, defend_y, base[:, 1])], axis=1)
+
+
+def _marks(obs: Observation, xp: Any = np) -> tuple[Any, Any]:
+    """The attacker in our third each player marks (shirt number) and whether it marks one.
+
+    Every seen opponent in our third but the one nearest the ball (the interceptor and the
+    cover take that one) goes to the free teammate (a defender or midfielder, not one of the
+    two nearest the ball) nearest its goal-side; a player given several marks the one
+    nearest our goal."""
+    our_goal = xp.asarray(_OUR_GOAL)
+    opp_ball = xp.where(obs.opps_valid,
+                        xp.linalg.norm(obs.opps - obs.ball[:, None], axis=-1), np.inf)
+    on_ball = xp.arange(PLAYERS)[None] == xp.argmin(opp_ball, axis=1)[:, None]
+    danger = obs.opps_valid & (obs.opps[..., 0] < OUR_THIRD) & ~on_ball  # [n, 11]
+    side = our_goal[None, None] - obs.opps
+    spot = obs.opps + 1.5 * side / xp.maximum(xp.linalg.norm(side, axis=-1, keepdims=True), 1e-6)
+    mate_ball = xp.where(obs.mates_valid,
+                         xp.linalg.norm(obs.mates - obs.ball[:, None], axis=-1), np.inf)
+    mate_rank = (mate_ball[:, None, :] < mate_ball[:, :, None]).sum(-1)  # [n, 11]
+    shirt = xp.arange(1, PLAYERS + 1)[None]
+    free = obs.mates_valid & (shirt >= 2) & (shirt <= 9) & (mate_rank >= 2)
+    gap = xp.linalg.norm(obs.mates[:, :, None] - spot[:, None], axis=-1)  # [n, mate, opp]
+    nearest = xp.argmin(xp.where(free[:, :, None], gap, np.inf), axis=1)  # [n, opp]
+    mine = danger & (nearest == (obs.unum - 1)[:, None]) & free.any(1)[:, None]
+    goal_d = xp.where(mine, xp.linalg.norm(obs.opps - our_goal[None, None], axis=-1), np.inf)
+    target = xp.argmin(goal_d, axis=1)
+    return (target + 1).astype(xp.int32), mine.any(axis=1)
+
+
 def naive_choices(obs: Observation, xp: Any = np) -> tuple[Any, Any, Any]:
     """The yardstick's decisions for every row of ``obs``, as arrays of ``xp`` (numpy, or
     jax.numpy under a trace): kind int32 [n], index int32 [n], point f32 [n, 2] (the fields
@@ -127,7 +186,9 @@ def naive_choices(obs: Observation, xp: Any = np) -> tuple[Any, Any, Any]:
     n = len(obs)
     kind = xp.full(n, Kind.GO_TO, xp.int32)
     index = xp.zeros(n, xp.int32)
-    point = slot_targets(obs.unum, obs.ball, obs.offside_x, xp).astype(xp.float32)
+    ours = obs.kickable | obs.kickable_mate | (
+        ~obs.kickable_opp & (xp.minimum(obs.self_reach, obs.mate_reach) < obs.opp_reach))
+    point = _slots(obs, ~ours, xp).astype(xp.float32)
 
     def put(mask: Any, value: Any, into: Any) -> Any:
         return xp.where(mask[:, None] if into.ndim == 2 else mask, value, into)
@@ -149,6 +210,10 @@ def naive_choices(obs: Observation, xp: Any = np) -> tuple[Any, Any, Any]:
     goalward = xp.asarray(_OUR_GOAL)[None] - obs.ball
     goalward = goalward / xp.maximum(xp.linalg.norm(goalward, axis=1, keepdims=True), 1e-6)
     point = put(cover, obs.ball + COVER_DISTANCE * goalward, point)
+    # The free defenders and midfielders mark the attackers in our third.
+    marked, can_mark = _marks(obs, xp)
+    mark = ~ours & ~first & ~tackle & ~cover & can_mark
+    kind, index = put(mark, Kind.MARK, kind), put(mark, marked, index)
 
     # With it.
     receiver, can_pass = _best_pass(obs, xp)

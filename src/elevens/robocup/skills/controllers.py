@@ -134,7 +134,8 @@ def _run_plan(body: Bodies, target: jax.Array, threshold2: jax.Array,
               b: RcssParams) -> tuple[jax.Array, jax.Array, jax.Array]:
     """GO_TO's command to ``target`` f32[m, 2]: turn towards it and dash at it, braking so as
     to stop on it; within the square root of ``threshold2`` f32[m] metres, turn to face the
-    ball. (kind i32[m]: TURN or DASH, the vector f32[m, 2] it turns to or dashes along, the dash's power f32[m])."""
+    ball. (kind i32[m]: TURN or DASH, the vector f32[m, 2] it turns to or dashes along, the
+    dash's power f32[m])."""
     ahead = body.position + body.velocity  # where the player drifts to without a command
     offset = target - ahead
     distance = _norm(offset)

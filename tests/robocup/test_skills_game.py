@@ -211,7 +211,9 @@ def test_hold_keeps_the_ball_from_a_chaser_longer_than_standing() -> None:
     standing, _ = lost([GO_TO, 0, 0.0, 0.0])
     holding, gap = lost([HOLD, 0, 0, 0])
     assert holding > standing
-    assert (gap[:holding] <= reach).all() and holding >= 6
+    # The ball lies straight behind the holder from the chaser, which runs at it without a
+    # second turn: 5 cycles (12 spots 30 degrees apart left it 14 degrees off: 6).
+    assert (gap[:holding] <= reach).all() and holding >= 5
 
 
 def test_dribble_carries_the_ball_along_its_direction() -> None:

@@ -11,8 +11,8 @@ mean to the server runtime (``elevens.robocup.skills.space``), kept simple:
   meanwhile when the ball stays in reach;
 - DRIBBLE: the same kick, soft (:data:`DRIBBLE_SPEED`) along the direction and facing it
   first, so the player runs after the ball (intercepting it on the next cycles);
-- HOLD: kick the ball to the player's side away from the nearest opponent, then face their
-  goal while it lies there;
+- HOLD: kick the ball to the player's side away from the nearest opponent (as far from it as
+  one kick reaches), then face their goal while it lies there;
 - GO_TO / MARK: turn to the point, dash at it braking on arrival, face the ball there; MARK's
   point is :data:`MARK_DISTANCE` goal-side of the opponent;
 - TACKLE: rcssserver's tackle at their goal when its success probability is above 0, else
@@ -130,21 +130,24 @@ def _clockwise(body: Bodies, v: jax.Array) -> jax.Array:
     return -jnp.degrees(_between(body.facing, v))
 
 
-def _run_plan(body: Bodies, target: jax.Array, threshold: jax.Array, threshold2: jax.Array,
+def _run_plan(body: Bodies, target: jax.Array, threshold2: jax.Array,
               b: RcssParams) -> tuple[jax.Array, jax.Array, jax.Array]:
     """GO_TO's command to ``target`` f32[m, 2]: turn towards it and dash at it, braking so as
-    to stop on it; within ``threshold`` f32[m] metres (``threshold2`` its square), turn to face
-    the ball. (kind i32[m]:
-    TURN or DASH, the vector f32[m, 2] it turns to or dashes along, the dash's power f32[m])."""
+    to stop on it; within the square root of ``threshold2`` f32[m] metres, turn to face the
+    ball. (kind i32[m]: TURN or DASH, the vector f32[m, 2] it turns to or dashes along, the
+    dash's power f32[m])."""
     ahead = body.position + body.velocity  # where the player drifts to without a command
     offset = target - ahead
     distance = _norm(offset)
-    relative = _between(body.facing, offset)
-    cone = jnp.maximum(np.radians(12.0), jnp.arctan2(threshold, distance))
+    # Off by more than the cone max(12 degrees, atan2(threshold, distance)), by cosines (no
+    # angle): cos(off) * distance < distance * min(cos 12, distance / hypot(threshold, distance)).
+    along = dot(body.facing, offset)
+    cone = jnp.minimum(np.cos(np.radians(12.0)) * distance,
+                       distance * distance / jnp.sqrt(threshold2 + distance * distance))
     near = target - body.position
     arrived = dot(near, near) <= threshold2
     power = jnp.clip(distance / b.dash_power_rate, 0.0, b.max_power)
-    turns = arrived | (jnp.abs(relative) > cone)
+    turns = arrived | (along < cone)
     vector = jnp.where(arrived[:, None], body.ball - body.position, offset)
     return jnp.where(turns, TURN, DASH), vector, power
 
@@ -233,18 +236,14 @@ def _most(body: Bodies, b: RcssParams) -> jax.Array:
                        b.ball_accel_max)
 
 
-_HOLD_ANGLES = np.arange(12) * (2 * np.pi / 12)
-_HOLD_SPOTS = np.stack([np.cos(_HOLD_ANGLES), np.sin(_HOLD_ANGLES)], axis=1).astype(np.float32)
-
-
 def _hold_plan(body: Bodies, opponents: jax.Array, goal_offset: jax.Array,
                b: RcssParams) -> tuple[jax.Array, jax.Array]:
-    """HOLD: keep the ball in reach, at the spot around the player (twelve, :data:`HOLD_RADIUS`
-    away) farthest from the nearest of ``opponents`` f32[m, k, 2] that one kick can put it on;
-    face the goal ``goal_offset`` f32[m, 2] away while it already lies there. (turns bool[m],
-    the vector f32[m, 2] it turns to, else the kick's acceleration)."""
-    # Elementwise over the few opponents and spots (a reduction over them, or a pick by a
-    # one-hot sum, is a slow library call on XLA's CPU backend).
+    """HOLD: keep the ball in reach, at the spot :data:`HOLD_RADIUS` around the player
+    farthest from the nearest of ``opponents`` f32[m, k, 2] that one kick can put it on; face
+    the goal ``goal_offset`` f32[m, 2] away while it already lies there. (turns bool[m], the
+    vector f32[m, 2] it turns to, else the kick's acceleration)."""
+    # Elementwise over the few opponents (a reduction over them, or a pick by a one-hot sum,
+    # is a slow library call on XLA's CPU backend).
     gaps = [dot(o - body.position, o - body.position)  # squared: the order is the same
             for o in (opponents[:, k] for k in range(opponents.shape[1]))]
     closest = functools.reduce(jnp.minimum, gaps)
@@ -255,21 +254,27 @@ def _hold_plan(body: Bodies, opponents: jax.Array, goal_offset: jax.Array,
     ahead = body.position + body.velocity
     most = _most(body, b)
     rolling = body.ball + body.ball_velocity
-    spots = [ahead + jnp.asarray(unit) for unit in HOLD_RADIUS * _HOLD_SPOTS]
-    clear = []  # squared
-    for here in spots:
-        need = here - rolling
-        feasible = dot(need, need) <= most * most  # one kick gets there
-        clear2 = dot(here - nearest, here - nearest)
-        clear.append(jnp.where(feasible, clear2, clear2 - 1e4))
-    clearest, spot = clear[0], spots[0]
-    for clear2, here in zip(clear[1:], spots[1:], strict=True):  # the first of the clearest
-        better = clear2 > clearest
-        clearest = jnp.where(better, clear2, clearest)
-        spot = jnp.where(better[:, None], here, spot)
+    # On the circle around ``ahead`` the distance to ``nearest`` grows with the angle from it,
+    # so the best spot is straight away from it, else the end of the arc one kick reaches
+    # (|R u - c| <= most: u . c / |c| >= cos) nearer that direction; none reached: away.
+    away = ahead - nearest
+    away_norm = _norm(away)
+    away = jnp.where((away_norm > 1e-6)[:, None], away / jnp.maximum(away_norm, 1e-6)[:, None],
+                     jnp.array([1.0, 0.0]))
+    c = rolling - ahead
+    e = jnp.maximum(_norm(c), 1e-6)
+    c_unit = c / e[:, None]
+    cos = (HOLD_RADIUS**2 + e * e - most * most) / (2.0 * HOLD_RADIUS * e)
+    reaches = cos <= 1.0  # some spot of the circle is one kick away
+    side = jnp.where(c_unit[:, 0] * away[:, 1] - c_unit[:, 1] * away[:, 0] >= 0.0, 1.0, -1.0)
+    sin = side * jnp.sqrt(jnp.maximum(1.0 - cos * cos, 0.0))
+    edge = jnp.stack([cos * c_unit[:, 0] - sin * c_unit[:, 1],
+                      cos * c_unit[:, 1] + sin * c_unit[:, 0]], axis=-1)
+    clamp = reaches & (dot(away, c_unit) < cos)
+    spot = ahead + HOLD_RADIUS * jnp.where(clamp[:, None], edge, away)
+    clearest = jnp.where(reaches, _norm(spot - nearest), 0.0)
     here = _norm(rolling - nearest)
-    settled = (here >= jnp.sqrt(jnp.maximum(clearest, 0.0)) - 0.2) & (
-        _norm(rolling - ahead) < b.kickable_distance - 0.25)
+    settled = (here >= clearest - 0.2) & (_norm(rolling - ahead) < b.kickable_distance - 0.25)
     return settled, jnp.where(settled[:, None], goal_offset, spot - rolling)
 
 
@@ -367,10 +372,8 @@ def commands(choice: d.SkillChoice, body: Bodies, positions: jax.Array, sign: ja
     marked = target + MARK_DISTANCE * _unit(our_goal - target)
     run_point = jnp.where((kind == d.GO_TO)[:, None], world_point,
                           jnp.where((kind == d.MARK)[:, None], marked, reach_point))
-    threshold, threshold2 = (
-        jnp.where(kind == d.GO_TO, go_to, jnp.where(kind == d.MARK, mark, chase))
-        for go_to, mark, chase in ((1.0, 0.5, 0.3), (1.0**2, 0.5**2, 0.3**2)))
-    run_kind, run_vector, dash_power = _run_plan(body, run_point, threshold, threshold2, b)
+    threshold2 = jnp.where(kind == d.GO_TO, 1.0**2, jnp.where(kind == d.MARK, 0.5**2, 0.3**2))
+    run_kind, run_vector, dash_power = _run_plan(body, run_point, threshold2, b)
     chases = (kind == d.INTERCEPT) | (
         (kind == d.TACKLE) & ~(tackle_probability(body.position, body.heading, body.ball,
                                                   body.facing) > 0.0))

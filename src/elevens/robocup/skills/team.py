@@ -220,10 +220,12 @@ class SkillsRandomTeam:
 
 def random_actions(key: jax.Array, shape: tuple[int, ...]) -> jax.Array:
     """Uniform skill actions f32[*shape, 4] for players of a team of ``shape[-1]``: every kind,
-    every slot of its observation, every point; one draw (each draw is a loop of its own on
-    a CPU)."""
+    every slot of its observation, every point (16 bits of each value); one draw of two 32-bit
+    words a player (each word drawn is dear on a CPU: half the words of four floats)."""
     n = shape[-1]
-    u = jax.random.uniform(key, (*shape, SKILL_ACTION_SIZE))
+    words = jax.random.bits(key, (*shape, 2), jnp.uint32)
+    halves = jnp.concatenate([words >> 16, words & 0xFFFF], axis=-1)  # kind, pointer, x, y
+    u = (halves.astype(jnp.float32) + 0.5) / 65536.0  # in (0, 1)
     kind = jnp.minimum(jnp.floor(u[..., 0] * OPEN_KINDS), OPEN_KINDS - 1)
     pointer = jnp.minimum(jnp.floor(u[..., 1] * 2 * n), 2 * n - 1)
     return jnp.concatenate([kind[..., None], pointer[..., None], 2.0 * u[..., 2:] - 1.0], axis=-1)

@@ -106,7 +106,7 @@ def bad_command_lines(draw: Any) -> tuple[str, list[str]]:
     return command, [*COMMANDS[command], f"--{flag.replace('_', '-')}", value]
 
 
-@settings(max_examples=60, deadline=5000, suppress_health_check=FIXTURES)
+@settings(max_examples=60, deadline=15000, suppress_health_check=FIXTURES)
 @given(case=bad_command_lines())
 def test_random_bad_flags_exit_2_with_one_line(
     case: tuple[str, list[str]], capsys: pytest.CaptureFixture[str], tmp_path: Path,
@@ -191,7 +191,7 @@ def mutate(path: Path, edits: list[tuple[int, int]], truncate: int | None) -> No
 
 @pytest.mark.filterwarnings("error::ResourceWarning")  # a damaged replay leaves no file open
 @pytest.mark.filterwarnings("error::pytest.PytestUnraisableExceptionWarning")
-@settings(max_examples=60, deadline=5000, suppress_health_check=FIXTURES)
+@settings(max_examples=60, deadline=15000, suppress_health_check=FIXTURES)
 @given(edits=MUTATIONS, truncate=st.none() | st.integers(min_value=0))
 def test_mutated_replays_raise_only_replay_errors(
     edits: list[tuple[int, int]], truncate: int | None, tmp_path: Path

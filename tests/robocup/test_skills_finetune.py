@@ -82,8 +82,8 @@ def test_server_cycles_pack_into_the_learners_rollout(tmp_path: Path) -> None:
     # announced at 5 (scored in step 4->5), theirs at 7; at 6 the decision misses its
     # deadline (the default plays); at 8 player 9 does not ask.
     # Deadlines of seconds: a busy machine's decisions must not miss them but at cycle 6.
-    slow = _SlowOnce(recorder, cycle=6, seconds=12.0)
-    with DecisionServer(slow, deadline_s=10.0, gather_s=5.0,
+    slow = _SlowOnce(recorder, cycle=6, seconds=5.0)
+    with DecisionServer(slow, deadline_s=4.0, gather_s=2.0,
                         on_default=recorder.defaulted) as server:
         team = FakeTeam(server.port, timeout_ms=120_000)
         try:

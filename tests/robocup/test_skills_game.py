@@ -236,7 +236,7 @@ def test_a_tackle_wins_the_ball_with_the_servers_probability() -> None:
     assert chance == pytest.approx(1.0 - (1.9 / 2.0) ** 6, rel=1e-5)
     actions = jnp.asarray([[[TACKLE, 0, 0, 0]], [[GO_TO, 0, 0, 0]]], jnp.float32)
     keys = jax.random.split(jax.random.key(3), 400)
-    step = jax.vmap(env.step, in_axes=(0, None, None, None))
+    step = jax.jit(jax.vmap(env.step, in_axes=(0, None, None, None)))
     after, _, _, _, info = step(keys, start, actions, params)
     won = np.asarray(info.pushes[:, 0])
     assert abs(won.mean() - chance) < 4 * np.sqrt(chance * (1 - chance) / len(won))
@@ -256,14 +256,14 @@ def test_jit_equals_eager_and_vmap_equals_one_game_at_a_time() -> None:
     env, params, start, actions = _random_game()
     key = jax.random.key(7)
     eager = env.step(key, start, actions, params)
-    jitted = jax.jit(env.step)(key, start, actions, params)
+    one = jax.jit(env.step)
+    jitted = one(key, start, actions, params)
     for a, b in zip(jax.tree.leaves(eager), jax.tree.leaves(jitted), strict=True):
         np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-5, atol=1e-5)
     keys = jax.random.split(jax.random.key(8), 3)
     starts, _ = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
     batch = env.sample_actions(jax.random.key(9), (3,))
     stepped = jax.jit(jax.vmap(env.step, in_axes=(0, 0, 0, None)))(keys, starts, batch, params)
-    one = jax.jit(env.step)
     for g in range(3):
         alone = one(keys[g], jax.tree.map(lambda x, g=g: x[g], starts), batch[g], params)
         for a, b in zip(jax.tree.leaves(alone), jax.tree.leaves(stepped), strict=True):

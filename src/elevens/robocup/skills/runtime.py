@@ -13,7 +13,7 @@ cycle is only used to know when everyone has asked.
 
 ``DecisionServer.stats()`` reports the requests, the batches, the defaults sent, the latency
 from a decoded request to its answer (p50, p99, max) and the round trip the proxy waits for:
-from the request's first bytes on the socket to its answer written back (decoding, the wait
+from the request's first bytes on the socket to its answer handed to it (decoding, the wait
 for the batch, the decision and encoding; p50, p99, max).
 """
 
@@ -84,12 +84,19 @@ class _TimedSocket(TSocket):
     returns as they do."""
 
     first_read: float | None = None
+    last_write: float | None = None
 
     def read(self, sz: int) -> bytes:
         data: bytes = super().read(sz)
         if self.first_read is None:
             self.first_read = time.perf_counter()
         return data
+
+    def write(self, buff: bytes) -> None:
+        # Stamped as the answer is handed to the socket: after a blocking send the thread
+        # may wait for the GIL while the proxy already has the answer.
+        self.last_write = time.perf_counter()
+        super().write(buff)
 
 
 class _Connection:
@@ -244,11 +251,12 @@ class DecisionServer:
         processor = TProcessor(protocol().Game, connection)
         try:
             while not self._closed:
-                client.first_read, connection.asked = None, False
+                client.first_read, client.last_write, connection.asked = None, None, False
                 processor.process(prot, prot)  # reads a call, answers it, flushes
                 # A call already buffered by the previous read has no arrival time: skipped.
-                if connection.asked and client.first_read is not None:
-                    elapsed = time.perf_counter() - client.first_read
+                if (connection.asked and client.first_read is not None
+                        and client.last_write is not None):
+                    elapsed = client.last_write - client.first_read
                     with self._lock:
                         self._roundtrip.append(elapsed)
         except (TTransportException, ConnectionError):

@@ -95,7 +95,7 @@ def test_a_raw_key_is_refused() -> None:
 
 
 def test_jit_and_eager_unroll_agree() -> None:
-    env, params = elevens.make("2v2", episode_length=6)  # eager runs op by op: seconds a step
+    env, params = elevens.make("2v2", episode_length=3)  # eager runs op by op: seconds a step
     keys = jax.random.split(jax.random.key(1), 3)
     play = functools.partial(
         _play, env, params, PolicyActor(RandomTeam()), PolicyActor(TeamworkTeam())

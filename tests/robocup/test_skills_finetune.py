@@ -45,6 +45,17 @@ def _config(tmp_path: Path, **overrides: Any) -> Any:
                                        **overrides})
 
 
+def _recording(config: Any) -> tuple[Any, Any, Recorder]:
+    """A fresh learner, its state from key 0, and a warmed-up recorder of its policy."""
+    learner = make_learner(config.learner, config.learner.make_env(), devices=1,
+                           external_games=True)
+    state = learner.init(jax.random.key(0))
+    recorder = Recorder(learner.policy, seed=1)
+    recorder.set_params(state.params.policy)
+    recorder.warm_up()
+    return learner, state, recorder
+
+
 def _ball(c: int) -> tuple[float, float]:
     return (-20.0 + 3.0 * c, 4.0)
 
@@ -70,12 +81,7 @@ class _SlowOnce:
 def test_server_cycles_pack_into_the_learners_rollout(tmp_path: Path) -> None:
     """(The learner's improve on such rollouts: the host-loop test below.)"""
     config = _config(tmp_path)
-    learner = make_learner(config.learner, config.learner.make_env(), devices=1,
-                           external_games=True)
-    state = learner.init(jax.random.key(0))
-    recorder = Recorder(learner.policy, seed=1)
-    recorder.set_params(state.params.policy)
-    recorder.warm_up()
+    learner, state, recorder = _recording(config)
     games = SkillGames(config)
     # Cycle 1 is played before recording starts (the match goes on between iterations);
     # recorded: 2 before the kick-off (everyone placed: a routine), 3..8 in play, our goal
@@ -151,12 +157,7 @@ def test_a_player_that_does_not_ask_is_filled_in_and_a_new_match_starts_an_episo
     tmp_path: Path,
 ) -> None:
     config = _config(tmp_path)
-    policy = make_learner(config.learner, config.learner.make_env(), devices=1,
-                          external_games=True)
-    state = policy.init(jax.random.key(0))
-    recorder = Recorder(policy.policy, seed=1)
-    recorder.set_params(state.params.policy)
-    recorder.warm_up()
+    policy, _, recorder = _recording(config)
     with DecisionServer(recorder, deadline_s=60.0, gather_s=3.0) as server:
         team = FakeTeam(server.port, timeout_ms=120_000)
         try:

@@ -19,7 +19,7 @@ kick-off moves, goalie and set-play behaviours outside open play.
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import Any
 
 import jax
@@ -44,6 +44,7 @@ from elevens.robocup.skills.team import SKILLS_FIELD
 from elevens.teams.scripted import Field
 
 __all__ = [
+    "shirt_batches",
     "APPROXIMATED",
     "BALL_SEEN_WITHIN",
     "LearnedSkills",
@@ -188,6 +189,32 @@ def skill_decisions(obs: SkillObservation, actions: np.ndarray, seen: np.ndarray
     return Decisions.of(*outside_open_play(obs, choice.kind, index, choice.point))
 
 
+def shirt_batches(
+    unum: Any,
+) -> Iterator[tuple[list[int], np.ndarray, np.ndarray, np.ndarray]]:
+    """The rows of a batch of requests (shirt numbers ``unum``) in policy calls of distinct
+    shirts, in order (a player twice: two cycles' requests): each call's ``(rows, slot,
+    fill, present)``: the rows and their shirts' slots; for every shirt a row (those that
+    did not ask repeat a row that did, their result and memory dropped, so the call has one
+    shape); which shirts asked, bool[PLAYERS]."""
+    unum = np.asarray(unum)
+    left = list(range(len(unum)))
+    while left:
+        rows: list[int] = []
+        later: list[int] = []
+        shirts: set[int] = set()
+        for r in left:
+            (later if int(unum[r]) in shirts else rows).append(r)
+            shirts.add(int(unum[r]))
+        slot = unum[rows] - 1
+        fill = np.full(PLAYERS, rows[0])
+        fill[slot] = rows
+        present = np.zeros(PLAYERS, bool)
+        present[slot] = True
+        yield rows, slot, fill, present
+        left = later
+
+
 class LearnedSkills:
     """The runtime's ``decide`` for a trained skills policy (module docstring).
 
@@ -229,29 +256,13 @@ class LearnedSkills:
         numbers; a batch holding a player twice (two cycles' requests) is decided in order,
         one call for each repeat."""
         view = sim_observation(obs, self.field, episode_length=self.episode_length)
-        unum = np.asarray(obs.unum)
-        out = np.zeros((len(unum), SKILL_ACTION_SIZE), np.float32)
-        left = list(range(len(unum)))
-        while left:
-            rows: list[int] = []
-            later: list[int] = []
-            seen_shirts: set[int] = set()
-            for r in left:
-                (later if int(unum[r]) in seen_shirts else rows).append(r)
-                seen_shirts.add(int(unum[r]))
-            slot = unum[rows] - 1
-            # Every shirt's row; those that did not ask repeat a row that did (their result
-            # and memory are dropped), so the call has one shape.
-            fill = np.full(PLAYERS, rows[0])
-            fill[slot] = rows
+        out = np.zeros((len(obs.unum), SKILL_ACTION_SIZE), np.float32)
+        for rows, slot, fill, present in shirt_batches(obs.unum):
             padded = jax.tree.map(lambda leaf, fill=fill: leaf[fill], view)
-            present = np.zeros(PLAYERS, bool)
-            present[slot] = True
             self.key, key = jax.random.split(self.key)
             self.carry, acts = self._act(self.params, self.carry, padded, present, key)
             self.policy_calls += 1
             out[rows] = np.asarray(acts)[slot]
-            left = later
         return out, np.asarray(view.entity_mask)
 
     def decisions(self, obs: SkillObservation) -> Decisions:

@@ -36,7 +36,7 @@ from elevens.env.params import EnvParams
 from elevens.env.reward import reward_terms
 from elevens.env.state import GlobalState, Observation
 from elevens.robocup.rules import MATCH_CLOCK
-from elevens.robocup.skills.learned import sim_observation, skill_decisions
+from elevens.robocup.skills.learned import shirt_batches, sim_observation, skill_decisions
 from elevens.robocup.skills.naive import kick_off_points
 from elevens.robocup.skills.observe import PLAYERS, observe
 from elevens.robocup.skills.observe import Observation as SkillObservation
@@ -219,28 +219,16 @@ class Recorder:
         with np.errstate(over="ignore"):  # librcsc's unplaced values: _finite
             obs, unplaced = _finite(observe(states))
         view = sim_observation(obs, self.field, episode_length=self.episode_length)
-        unum = np.asarray(obs.unum)
         with self._lock:
             params, match = self.params, self.match
-        m = len(unum)
+        m = len(obs.unum)
         actions = np.zeros((m, 4), np.float32)
         pre_tanh = np.zeros((m, 4), np.float32)
         log_prob = np.zeros(m, np.float32)
         before: list[Any] = [None] * m
-        left = list(range(m))
-        while left:
-            rows: list[int] = []
-            later: list[int] = []
-            shirts: set[int] = set()
-            for r in left:
-                (later if int(unum[r]) in shirts else rows).append(r)
-                shirts.add(int(unum[r]))
-            slot = unum[rows] - 1
-            fill = np.full(PLAYERS, rows[0])
-            fill[slot] = rows
+        for rows, slot, fill, asked in shirt_batches(obs.unum):
             padded = jax.tree.map(lambda leaf, fill=fill: leaf[fill][None], view)
-            present = np.zeros((1, PLAYERS), bool)
-            present[0, slot] = True
+            present = asked[None]
             carry = jax.tree.map(np.asarray, self.carry)
             for r, s in zip(rows, slot, strict=True):
                 before[r] = jax.tree.map(lambda leaf, s=s: leaf[0, s], carry)
@@ -250,7 +238,6 @@ class Recorder:
             actions[rows] = np.asarray(act)[0, slot]
             pre_tanh[rows] = np.asarray(raw)[0, slot]
             log_prob[rows] = np.asarray(logp)[0, slot]
-            left = later
         decisions = skill_decisions(obs, actions, np.asarray(view.entity_mask), self.field)
         self._record(states, obs, view, pre_tanh, log_prob, before, match, unplaced)
         return to_player_actions(decisions, obs)

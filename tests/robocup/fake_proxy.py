@@ -143,6 +143,49 @@ def state(scene: Scene, unum: int) -> Any:
                    need_preprocess=False)
 
 
+def varied_cycle(rng: np.random.Generator, cycle: int = 1) -> list[Any]:
+    """Eleven States of a random moment, each world model as partial as the proxy's can be:
+    players missing or with an unknown shirt number (0), a lost ball, no intercept table,
+    unset values; random modes, holders and stamina."""
+    spread = rng.uniform(2.0, 20.0)
+    kickable = int(rng.integers(0, 12))
+    ours = OURS + rng.normal(0.0, spread, OURS.shape).astype(np.float32)
+    ball = rng.uniform([-50.0, -32.0], [50.0, 32.0])
+    if kickable:
+        ball = ours[kickable - 1] + rng.normal(0.0, 0.3, 2)
+    scene = Scene(
+        ours=ours, theirs=THEIRS + rng.normal(0.0, spread, THEIRS.shape).astype(np.float32),
+        ball=(float(ball[0]), float(ball[1])), mode=int(rng.choice([2, 2, 2, 2, 0, 8, 3, 5, 10])),
+        cycle=cycle, kickable=kickable, kickable_opponent=bool(rng.random() < 0.3),
+    )
+    states = []
+    for unum in range(1, 12):
+        s = state(scene, unum)
+        wm = s.world_model
+        for players in (wm.teammates, wm.opponents):
+            keep = rng.random(len(players)) < rng.uniform(0.3, 1.0)
+            players[:] = [p for p, k in zip(players, keep, strict=True) if k]
+            for p in players:
+                if rng.random() < 0.05:
+                    p.uniform_number = 0
+                if rng.random() < 0.05:
+                    p.body_direction = None
+                p.velocity = _v(FAKE, rng.normal(0.0, 0.5, 2))
+        if rng.random() < 0.05:
+            wm.ball = None
+        if rng.random() < 0.05:
+            wm.intercept_table = None
+        else:
+            wm.intercept_table.self_reach_steps = int(rng.integers(0, 30))
+        wm.myself.stamina = float(rng.uniform(2000.0, 8000.0))
+        wm.myself.tackle_probability = float(rng.random())
+        wm.myself.body_direction = float(rng.uniform(-180.0, 180.0))
+        wm.is_penalty_kick_mode = bool(rng.random() < 0.05)
+        s.need_preprocess = bool(rng.random() < 0.2)
+        states.append(s)
+    return states
+
+
 class FakePlayer:
     """One proxy player's connection."""
 

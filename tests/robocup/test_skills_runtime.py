@@ -19,7 +19,7 @@ import pytest
 from elevens.robocup.skills import skills_policy
 from elevens.robocup.skills.naive import skills_naive
 from elevens.robocup.skills.proxy import ProxyNotFound, find_proxy, proxy_command
-from elevens.robocup.skills.runtime import DecisionServer
+from elevens.robocup.skills.runtime import DecisionServer, rowwise
 from tests.robocup.fake_proxy import OURS, FakeTeam, Scene
 
 
@@ -135,6 +135,45 @@ def test_a_player_that_does_not_ask_delays_the_batch_only_by_the_gather_time() -
             team.close()
     # Player 7 was decided alone and at once: the others of its cycle were decided already.
     assert decide.batches == [[u for u in range(1, 12) if u != 7], [7]]
+
+
+def test_a_rowwise_decision_answers_each_player_alone_without_the_gather() -> None:
+    """A rowwise decide (skills_naive's) is called for each request on its own as it comes:
+    a player that does not ask holds nobody back."""
+    decide = rowwise(Counting())
+    with DecisionServer(decide, deadline_s=10.0, gather_s=5.0) as server:
+        team = FakeTeam(server.port)
+        try:
+            start = time.perf_counter()
+            answers, _ = team.cycle(Scene(ball=(-20.0, 12.0), cycle=3), skip=[2])
+            elapsed = time.perf_counter() - start
+        finally:
+            team.close()
+        stats = server.stats()
+    assert sorted(answers) == [u for u in range(1, 12) if u != 2]
+    assert elapsed < 2.5  # not the 5 s gather
+    assert sorted(decide.batches) == [[u] for u in range(1, 12) if u != 2]
+    assert (stats.requests, stats.batches, stats.defaults, stats.errors) == (10, 10, 0, 0)
+    assert 0.0 < stats.decide_ms_p50 <= stats.latency_ms_max <= stats.roundtrip_ms_max
+    interceptors = [u for u, a in answers.items() if _body(a) == "body_intercept"]
+    reach = np.linalg.norm(OURS - np.array([-20.0, 12.0]), axis=1)
+    assert interceptors == [int(np.argmin(reach[1:])) + 2]  # as one batch decides
+
+
+def test_a_failing_rowwise_decision_gets_the_default() -> None:
+    told: list[Any] = []
+    decide = rowwise(Counting(fail=True))
+    with DecisionServer(decide, on_default=told.append) as server:
+        team = FakeTeam(server.port, players=2)
+        try:
+            answers, _ = team.cycle(Scene(ball=(10.0, 0.0)))
+        finally:
+            team.close()
+        stats = server.stats()
+    assert sorted(answers) == [1, 2]
+    assert all(_body(a) == "body_turn_to_ball" for a in answers.values())
+    assert (stats.defaults, stats.errors) == (2, 2)
+    assert sorted(s.world_model.myself.uniform_number for s in told) == [1, 2]
 
 
 @pytest.mark.parametrize("fail", [False, True])
@@ -269,7 +308,7 @@ def test_the_command_plays_the_team_and_prints_its_report(tmp_path: Path) -> Non
     done = subprocess.run(
         [sys.executable, "-m", "elevens", "robocup", "skills-team", "--proxy", str(folder),
          "--port", "6200", "--team-name", "skills", "--json",
-         # A cycle's eleven arrive together; windows a busy host cannot split.
+         # Windows a busy host cannot miss (skills_naive is decided request by request).
          "--gather-ms", "4000", "--deadline-ms", "8000"],
         capture_output=True, text=True, env=env, timeout=120,
     )
@@ -277,8 +316,8 @@ def test_the_command_plays_the_team_and_prints_its_report(tmp_path: Path) -> Non
     report = json.loads(done.stdout.strip().splitlines()[-1])
     assert report["team"] == "skills" and report["ended"] == "players left"
     stats = report["stats"]
-    assert (stats["requests"], stats["batches"], stats["defaults"]) == (55, 5, 0)
-    assert stats["mean_batch"] == 11.0 and stats["latency_ms_p99"] > 0.0
+    assert (stats["requests"], stats["batches"], stats["defaults"]) == (55, 55, 0)
+    assert stats["mean_batch"] == 1.0 and stats["latency_ms_p99"] > 0.0
     args = (folder / "args").read_text().split()
     assert args[:6] == ["-h", "127.0.0.1", "-p", "6200", "-P", "6202"]
     assert args[args.index("-t") + 1] == "skills" and "-C" in args

@@ -33,6 +33,7 @@ import numpy as np
 
 from elevens.robocup.skills.decode import FORMATION, SLIDE, slot_targets
 from elevens.robocup.skills.observe import PLAYERS, Observation, observe
+from elevens.robocup.skills.runtime import rowwise
 from elevens.robocup.skills.space import (
     DRIBBLE_DIRECTIONS,
     GOAL,
@@ -64,7 +65,22 @@ OUR_THIRD = -17.5  # x below which the attackers are marked and the passes are s
 SAFE_GAP = 5.0  # OPEN_ENOUGH of a pass from our third
 _OUR_GOAL = np.array([-52.5, 0.0], np.float32)
 _GOAL_YS = np.linspace(-GOAL_HALF_WIDTH + 1.0, GOAL_HALF_WIDTH - 1.0, 5).astype(np.float32)
+_SHOT_TARGETS = np.stack([np.full(5, GOAL[0]), _GOAL_YS], axis=1)  # [5, 2]
 _PLAY_ON, _BEFORE_KICK_OFF, _AFTER_GOAL = 2, 0, 8
+# The kinds as plain ints: numpy reads an IntEnum member through attribute probes that cost
+# more than the where it goes into.
+(_SHOOT, _PASS, _DRIBBLE, _HOLD, _INTERCEPT, _GO_TO, _MARK, _TACKLE, _KICKOFF_MOVE, _GOALIE,
+ _SET_PLAY, _PENALTY) = (int(k) for k in Kind)
+
+
+def _norm(v: Any, xp: Any = np, keepdims: bool = False) -> Any:
+    """Length over the last axis. In numpy the sum of squares that ``np.linalg.norm`` takes
+    (the same bits) without its checks, which cost as much as the sum on a host decision's
+    few rows."""
+    if xp is np:
+        squares = np.add.reduce(v * v, axis=-1)
+        return np.sqrt(squares[..., None] if keepdims else squares)
+    return xp.linalg.norm(v, axis=-1, keepdims=keepdims)
 
 
 def _segment_gap(a: Any, b: Any, p: Any, xp: Any = np) -> Any:
@@ -72,13 +88,13 @@ def _segment_gap(a: Any, b: Any, p: Any, xp: Any = np) -> Any:
     ab = (b - a)[..., None, :]
     ap = p - a[..., None, :]
     t = xp.clip((ap * ab).sum(-1) / xp.maximum((ab * ab).sum(-1), 1e-6), 0.0, 1.0)
-    return xp.linalg.norm(ap - t[..., None] * ab, axis=-1)
+    return _norm(ap - t[..., None] * ab, xp)
 
 
 def _shot_points(obs: Observation, xp: Any = np) -> Any:
     """The goal-mouth point [n, 2] whose shooting line passes farthest (in angle) from the
     opponents between the shooter and the goal."""
-    targets = xp.asarray(np.stack([np.full(5, GOAL[0]), _GOAL_YS], axis=1))  # [5, 2]
+    targets = xp.asarray(_SHOT_TARGETS)
     to_target = targets[None] - obs.pos[:, None]  # [n, 5, 2]
     to_opp = obs.opps - obs.pos[:, None]  # [n, 11, 2]
     ang_t = xp.arctan2(to_target[..., 1], to_target[..., 0])  # [n, 5]
@@ -93,7 +109,7 @@ def _best_pass(obs: Observation, xp: Any = np) -> tuple[Any, Any]:
     """The receiver (shirt number, 0 when none is open) and whether one is."""
     n = len(obs)
     receivers = obs.mates  # [n, 11, 2]
-    dist = xp.linalg.norm(receivers - obs.pos[:, None], axis=-1)
+    dist = _norm(receivers - obs.pos[:, None], xp)
     lanes = _segment_gap(
         xp.repeat(obs.pos[:, None], PLAYERS, 1).reshape(-1, 2),
         receivers.reshape(-1, 2),
@@ -124,7 +140,7 @@ def _dribble(obs: Observation, xp: Any = np) -> tuple[Any, Any]:
     whether any forward one is."""
     directions = xp.asarray(DRIBBLE_DIRECTIONS)
     to_goal = xp.asarray(GOAL)[None] - obs.pos
-    to_goal = to_goal / xp.maximum(xp.linalg.norm(to_goal, axis=1, keepdims=True), 1e-6)
+    to_goal = to_goal / xp.maximum(_norm(to_goal, xp, keepdims=True), 1e-6)
     align = to_goal @ directions.T  # [n, 8]
     ends = obs.pos[:, None] + DRIBBLE_CLEAR * directions[None]  # [n, 8, 2]
     n = len(obs)
@@ -161,20 +177,20 @@ def _marks(obs: Observation, xp: Any = np) -> tuple[Any, Any]:
     nearest our goal."""
     our_goal = xp.asarray(_OUR_GOAL)
     opp_ball = xp.where(obs.opps_valid,
-                        xp.linalg.norm(obs.opps - obs.ball[:, None], axis=-1), np.inf)
+                        _norm(obs.opps - obs.ball[:, None], xp), np.inf)
     on_ball = xp.arange(PLAYERS)[None] == xp.argmin(opp_ball, axis=1)[:, None]
     danger = obs.opps_valid & (obs.opps[..., 0] < OUR_THIRD) & ~on_ball  # [n, 11]
     side = our_goal[None, None] - obs.opps
-    spot = obs.opps + 1.5 * side / xp.maximum(xp.linalg.norm(side, axis=-1, keepdims=True), 1e-6)
+    spot = obs.opps + 1.5 * side / xp.maximum(_norm(side, xp, keepdims=True), 1e-6)
     mate_ball = xp.where(obs.mates_valid,
-                         xp.linalg.norm(obs.mates - obs.ball[:, None], axis=-1), np.inf)
+                         _norm(obs.mates - obs.ball[:, None], xp), np.inf)
     mate_rank = (mate_ball[:, None, :] < mate_ball[:, :, None]).sum(-1)  # [n, 11]
     shirt = xp.arange(1, PLAYERS + 1)[None]
     free = obs.mates_valid & (shirt >= 2) & (shirt <= 9) & (mate_rank >= 2)
-    gap = xp.linalg.norm(obs.mates[:, :, None] - spot[:, None], axis=-1)  # [n, mate, opp]
+    gap = _norm(obs.mates[:, :, None] - spot[:, None], xp)  # [n, mate, opp]
     nearest = xp.argmin(xp.where(free[:, :, None], gap, np.inf), axis=1)  # [n, opp]
     mine = danger & (nearest == (obs.unum - 1)[:, None]) & free.any(1)[:, None]
-    goal_d = xp.where(mine, xp.linalg.norm(obs.opps - our_goal[None, None], axis=-1), np.inf)
+    goal_d = xp.where(mine, _norm(obs.opps - our_goal[None, None], xp), np.inf)
     target = xp.argmin(goal_d, axis=1)
     return (target + 1).astype(xp.int32), mine.any(axis=1)
 
@@ -184,7 +200,7 @@ def naive_choices(obs: Observation, xp: Any = np) -> tuple[Any, Any, Any]:
     jax.numpy under a trace): kind int32 [n], index int32 [n], point f32 [n, 2] (the fields
     of :class:`Decisions`)."""
     n = len(obs)
-    kind = xp.full(n, Kind.GO_TO, xp.int32)
+    kind = xp.full(n, _GO_TO, xp.int32)
     index = xp.zeros(n, xp.int32)
     ours = obs.kickable | obs.kickable_mate | (
         ~obs.kickable_opp & (xp.minimum(obs.self_reach, obs.mate_reach) < obs.opp_reach))
@@ -195,38 +211,38 @@ def naive_choices(obs: Observation, xp: Any = np) -> tuple[Any, Any, Any]:
 
     # Without the ball.
     first = (obs.self_reach <= obs.mate_reach) & ~obs.kickable_mate
-    kind = put(first, Kind.INTERCEPT, kind)
+    kind = put(first, _INTERCEPT, kind)
     tackle = obs.kickable_opp & ~obs.kickable_mate & (obs.tackle_probability >= TACKLE_PROBABILITY)
-    kind = put(tackle, Kind.TACKLE, kind)
+    kind = put(tackle, _TACKLE, kind)
     # While they have the ball, the one or two outfield players nearest it (after the
     # interceptor) stand between it and our goal.
     theirs = ~obs.kickable_mate & (
         obs.kickable_opp | (obs.opp_reach < xp.minimum(obs.self_reach, obs.mate_reach))
     )
     others = obs.mates_valid & (xp.arange(PLAYERS) > 0)[None]  # outfield teammates, me too
-    ball_dist = xp.linalg.norm(obs.mates - obs.ball[:, None], axis=-1)
-    rank = (others & (ball_dist < xp.linalg.norm(obs.pos - obs.ball, axis=1)[:, None])).sum(1)
+    ball_dist = _norm(obs.mates - obs.ball[:, None], xp)
+    rank = (others & (ball_dist < _norm(obs.pos - obs.ball, xp)[:, None])).sum(1)
     cover = theirs & ~first & ~tackle & (rank <= 1)
     goalward = xp.asarray(_OUR_GOAL)[None] - obs.ball
-    goalward = goalward / xp.maximum(xp.linalg.norm(goalward, axis=1, keepdims=True), 1e-6)
+    goalward = goalward / xp.maximum(_norm(goalward, xp, keepdims=True), 1e-6)
     point = put(cover, obs.ball + COVER_DISTANCE * goalward, point)
     # The free defenders and midfielders mark the attackers in our third.
     marked, can_mark = _marks(obs, xp)
     mark = ~ours & ~first & ~tackle & ~cover & can_mark
-    kind, index = put(mark, Kind.MARK, kind), put(mark, marked, index)
+    kind, index = put(mark, _MARK, kind), put(mark, marked, index)
 
     # With it.
     receiver, can_pass = _best_pass(obs, xp)
     direction, can_dribble = _dribble(obs, xp)
-    shoot = obs.kickable & (xp.linalg.norm(xp.asarray(GOAL)[None] - obs.pos, axis=1) < SHOOT_RANGE)
+    shoot = obs.kickable & (_norm(xp.asarray(GOAL)[None] - obs.pos, xp) < SHOOT_RANGE)
     passing = obs.kickable & ~shoot & can_pass
     dribble = obs.kickable & ~shoot & ~can_pass & can_dribble
     hold = obs.kickable & ~shoot & ~can_pass & ~can_dribble
-    kind, point = put(shoot, Kind.SHOOT, kind), put(shoot, _shot_points(obs, xp), point)
-    kind, index, point = (put(passing, Kind.PASS, kind), put(passing, receiver, index),
+    kind, point = put(shoot, _SHOOT, kind), put(shoot, _shot_points(obs, xp), point)
+    kind, index, point = (put(passing, _PASS, kind), put(passing, receiver, index),
                           put(passing, 0.0, point))
-    kind, index = put(dribble, Kind.DRIBBLE, kind), put(dribble, direction, index)
-    kind = put(hold, Kind.HOLD, kind)
+    kind, index = put(dribble, _DRIBBLE, kind), put(dribble, direction, index)
+    kind = put(hold, _HOLD, kind)
     return outside_open_play(obs, kind, index, point, xp)
 
 
@@ -248,10 +264,10 @@ def outside_open_play(obs: Observation, kind: Any, index: Any, point: Any,
 
     placing = (obs.mode == _BEFORE_KICK_OFF) | (obs.mode == _AFTER_GOAL)
     set_play = ~placing & (obs.mode != _PLAY_ON)
-    kind = put(set_play, Kind.SET_PLAY, kind)
-    kind = put(obs.goalie & ~placing, Kind.GOALIE, kind)
-    kind = put(obs.penalty, Kind.PENALTY, kind)
-    kind = put(placing, Kind.KICKOFF_MOVE, kind)
+    kind = put(set_play, _SET_PLAY, kind)
+    kind = put(obs.goalie & ~placing, _GOALIE, kind)
+    kind = put(obs.penalty, _PENALTY, kind)
+    kind = put(placing, _KICKOFF_MOVE, kind)
     point = put(placing, kick_off_points(obs.unum, xp), point)
     return kind.astype(xp.int32), index.astype(xp.int32), point.astype(xp.float32)
 
@@ -261,6 +277,7 @@ def skills_naive_decisions(obs: Observation) -> Decisions:
     return Decisions.of(*naive_choices(obs))
 
 
+@rowwise  # every row is decided on its own world model: nothing to gather
 def skills_naive(states: Sequence[Any]) -> list[Any]:
     """The decision server's callable: the proxy's States of a cycle to its PlayerActions."""
     obs = observe(states)

@@ -14,6 +14,7 @@ from elevens.robocup.skills import naive
 from elevens.robocup.skills.naive import skills_naive
 from elevens.robocup.skills.observe import observe
 from elevens.robocup.skills.runtime import is_rowwise
+from elevens.robocup.skills.space import to_player_actions
 from tests.robocup.fake_proxy import varied_cycle
 
 
@@ -22,7 +23,7 @@ def _cycles(count: int) -> list[list[Any]]:
     return [varied_cycle(rng, c + 1) for c in range(count)]
 
 
-def test_each_row_is_decided_as_in_the_whole_batch() -> None:
+def test_each_row_is_decided_as_in_the_whole_batch_and_routines_skip_open_play() -> None:
     assert is_rowwise(skills_naive)
     rng = np.random.default_rng(7)
     kinds = set()
@@ -32,6 +33,8 @@ def test_each_row_is_decided_as_in_the_whole_batch() -> None:
         cut = int(rng.integers(1, len(states)))
         split = skills_naive(states[:cut]) + skills_naive(states[cut:])
         assert whole == alone == split
+        obs = observe(states)  # the full decision, open play decided for every row
+        assert whole == to_player_actions(naive.skills_naive_decisions(obs), obs)
         kinds |= {next(k for k, v in vars(a.actions[0]).items() if v is not None) for a in whole}
     # The scenes reach the with-ball skills, the set plays and the kick-off too.
     assert {"body_smart_kick", "body_dribble", "move", "helios_set_play", "helios_goalie",

@@ -39,7 +39,8 @@ class RoboCupSkillsTeamArgs:
     coach: bool = False
     """Start the proxy's online coach too (it substitutes player types)."""
     deadline_ms: float = 40.0
-    """A request not decided this long after it arrived gets the default action."""
+    """A request not decided this long after it arrived gets the default action (a team
+    decided request by request, as skills_naive, is neither gathered nor has a deadline)."""
     gather_ms: float = 15.0
     """A cycle's batch is decided when all players asked or this long after the first."""
     proxy: str | None = None

@@ -279,6 +279,16 @@ def skills_naive_decisions(obs: Observation) -> Decisions:
 
 @rowwise  # every row is decided on its own world model: nothing to gather
 def skills_naive(states: Sequence[Any]) -> list[Any]:
-    """The decision server's callable: the proxy's States of a cycle to its PlayerActions."""
+    """The decision server's callable: the proxy's States of a cycle to its PlayerActions.
+    When every row plays a routine (outside play on, the goalie, a penalty) open play is not
+    decided: none of it reaches the answers (the routine's kind replaces it, the kick-off
+    spot its point)."""
     obs = observe(states)
-    return to_player_actions(skills_naive_decisions(obs), obs)
+    if ((obs.mode != _PLAY_ON) | obs.goalie | obs.penalty).all():
+        n = len(obs)
+        decisions = Decisions.of(*outside_open_play(
+            obs, np.full(n, _GO_TO, np.int32), np.zeros(n, np.int32),
+            np.zeros((n, 2), np.float32)))
+    else:
+        decisions = skills_naive_decisions(obs)
+    return to_player_actions(decisions, obs)

@@ -148,15 +148,21 @@ def varied_cycle(rng: np.random.Generator, cycle: int = 1) -> list[Any]:
     players missing or with an unknown shirt number (0), a lost ball, no intercept table,
     unset values; random modes, holders and stamina."""
     spread = rng.uniform(2.0, 20.0)
-    kickable = int(rng.integers(0, 12))
-    ours = OURS + rng.normal(0.0, spread, OURS.shape).astype(np.float32)
+    holder = int(rng.integers(3))  # 0: loose ball, 1: one of ours has it, 2: one of them
+    kickable = int(rng.integers(1, 12)) if holder == 1 else 0
+    shift = np.array([rng.uniform(-45.0, 45.0), 0.0], np.float32)  # both teams, up or down
+    ours = OURS + shift + rng.normal(0.0, spread, OURS.shape).astype(np.float32)
+    theirs = THEIRS + shift + rng.normal(0.0, spread, THEIRS.shape).astype(np.float32)
     ball = rng.uniform([-50.0, -32.0], [50.0, 32.0])
+    theirs_ball = holder == 2
     if kickable:
         ball = ours[kickable - 1] + rng.normal(0.0, 0.3, 2)
+    elif theirs_ball:
+        ball = theirs[int(rng.integers(0, 11))] + rng.normal(0.0, 0.3, 2)
     scene = Scene(
-        ours=ours, theirs=THEIRS + rng.normal(0.0, spread, THEIRS.shape).astype(np.float32),
+        ours=ours, theirs=theirs,
         ball=(float(ball[0]), float(ball[1])), mode=int(rng.choice([2, 2, 2, 2, 0, 8, 3, 5, 10])),
-        cycle=cycle, kickable=kickable, kickable_opponent=bool(rng.random() < 0.3),
+        cycle=cycle, kickable=kickable, kickable_opponent=theirs_ball,
     )
     states = []
     for unum in range(1, 12):

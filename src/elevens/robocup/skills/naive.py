@@ -226,23 +226,30 @@ def naive_choices(obs: Observation, xp: Any = np) -> tuple[Any, Any, Any]:
     goalward = xp.asarray(_OUR_GOAL)[None] - obs.ball
     goalward = goalward / xp.maximum(_norm(goalward, xp, keepdims=True), 1e-6)
     point = put(cover, obs.ball + COVER_DISTANCE * goalward, point)
+    # numpy skips a part whose rows are all masked out (its puts would keep nothing): the
+    # server decides one player at a time, and most have neither an attacker to mark nor
+    # the ball. A trace (jnp) cannot branch on values: it computes every part.
+    host = xp is np
     # The free defenders and midfielders mark the attackers in our third.
-    marked, can_mark = _marks(obs, xp)
-    mark = ~ours & ~first & ~tackle & ~cover & can_mark
-    kind, index = put(mark, _MARK, kind), put(mark, marked, index)
+    free = ~ours & ~first & ~tackle & ~cover
+    if not host or free.any():
+        marked, can_mark = _marks(obs, xp)
+        mark = free & can_mark
+        kind, index = put(mark, _MARK, kind), put(mark, marked, index)
 
     # With it.
-    receiver, can_pass = _best_pass(obs, xp)
-    direction, can_dribble = _dribble(obs, xp)
-    shoot = obs.kickable & (_norm(xp.asarray(GOAL)[None] - obs.pos, xp) < SHOOT_RANGE)
-    passing = obs.kickable & ~shoot & can_pass
-    dribble = obs.kickable & ~shoot & ~can_pass & can_dribble
-    hold = obs.kickable & ~shoot & ~can_pass & ~can_dribble
-    kind, point = put(shoot, _SHOOT, kind), put(shoot, _shot_points(obs, xp), point)
-    kind, index, point = (put(passing, _PASS, kind), put(passing, receiver, index),
-                          put(passing, 0.0, point))
-    kind, index = put(dribble, _DRIBBLE, kind), put(dribble, direction, index)
-    kind = put(hold, _HOLD, kind)
+    if not host or obs.kickable.any():
+        receiver, can_pass = _best_pass(obs, xp)
+        direction, can_dribble = _dribble(obs, xp)
+        shoot = obs.kickable & (_norm(xp.asarray(GOAL)[None] - obs.pos, xp) < SHOOT_RANGE)
+        passing = obs.kickable & ~shoot & can_pass
+        dribble = obs.kickable & ~shoot & ~can_pass & can_dribble
+        hold = obs.kickable & ~shoot & ~can_pass & ~can_dribble
+        kind, point = put(shoot, _SHOOT, kind), put(shoot, _shot_points(obs, xp), point)
+        kind, index, point = (put(passing, _PASS, kind), put(passing, receiver, index),
+                              put(passing, 0.0, point))
+        kind, index = put(dribble, _DRIBBLE, kind), put(dribble, direction, index)
+        kind = put(hold, _HOLD, kind)
     return outside_open_play(obs, kind, index, point, xp)
 
 

@@ -40,6 +40,7 @@ from elevens.robocup.bodies import (
     TURN,
     Commands,
     RcssParams,
+    atan2,
     kick_rate_factor,
     materialised,
 )
@@ -111,7 +112,7 @@ def _between(facing: jax.Array, v: jax.Array) -> jax.Array:
     """Radians counter-clockwise from the unit vector ``facing`` to ``v`` (one atan2)."""
     cross = facing[..., 0] * v[..., 1] - facing[..., 1] * v[..., 0]
     dot = facing[..., 0] * v[..., 0] + facing[..., 1] * v[..., 1]
-    return jnp.arctan2(cross, dot)
+    return atan2(cross, dot)
 
 
 def dot(a: jax.Array, b: jax.Array) -> jax.Array:
@@ -337,6 +338,12 @@ def nearest(position: jax.Array, ball: jax.Array) -> jax.Array:
     return jnp.sum(nearer, axis=1, dtype=jnp.int32)
 
 
+def ranked(rank: jax.Array, k: int) -> jax.Array:
+    """i32[k]: the rows of ranks 0..k-1 of ``rank`` i32[m] (:func:`nearest`), nearest first."""
+    return jnp.stack([jnp.sum(jnp.where(rank == r, np.arange(rank.shape[0]), 0))
+                      for r in range(k)])
+
+
 def commands(choice: d.SkillChoice, body: Bodies, positions: jax.Array, sign: jax.Array,
              half_length: Any, decay: float, b: RcssParams = DEFAULT,
              rank: jax.Array | None = None, kickers: int = KICKERS) -> Commands:
@@ -356,8 +363,12 @@ def commands(choice: d.SkillChoice, body: Bodies, positions: jax.Array, sign: ja
     m = positions.shape[0]
     n = m // 2
     # What many plans read is computed once into memory (XLA's CPU fusion would otherwise
-    # recompute the decode inside every consumer).
-    kind, target_index, direction_index, point = _pinned(*choice)
+    # recompute the decode, the tackle's chance and the reach inside every consumer).
+    kind, target_index, point, chance, in_reach = _pinned(
+        choice.kind, choice.target, choice.point,
+        tackle_probability(body.position, body.heading, body.ball, body.facing) > 0.0,
+        _in_reach(body, b))
+    direction_index = choice.direction
     kind = kind.astype(jnp.int32)
     their_goal = sign[:, None] * jnp.stack([jnp.asarray(half_length), jnp.asarray(0.0)])
     our_goal = -their_goal
@@ -377,22 +388,20 @@ def commands(choice: d.SkillChoice, body: Bodies, positions: jax.Array, sign: ja
     (run_point,) = _pinned(run_point)
     threshold2 = jnp.where(kind == d.GO_TO, 1.0**2, jnp.where(kind == d.MARK, 0.5**2, 0.3**2))
     run_kind, run_vector, dash_power = _run_plan(body, run_point, threshold2, b)
-    chases = (kind == d.INTERCEPT) | (
-        (kind == d.TACKLE) & ~(tackle_probability(body.position, body.heading, body.ball,
-                                                  body.facing) > 0.0))
+    chases = (kind == d.INTERCEPT) | ((kind == d.TACKLE) & ~(chance > 0.0))
     tackles = (kind == d.TACKLE) & ~chases
     reduced = rank is not None and kickers < m
     near = (rank < kickers) if reduced else jnp.ones(m, bool)
     # The rows with the ball: a with-ball kind (the decode leaves it to players in reach) or
     # a chase that settles the ball in reach.
-    with_ball = near & ((kind <= d.HOLD) | (chases & _in_reach(body, b)))
+    with_ball = near & ((kind <= d.HOLD) | (chases & (in_reach > 0.0)))
 
     # The with-ball plans of the nearest rows only: gathered by rank, worked out, scattered.
     team = (sign < 0).astype(jnp.int32)
     other = jnp.where(team[:, None, None] == 0, positions[n:][None], positions[:n][None])
     inputs = (body, kind, target, world_point, direction_index, sign, other, to_goal)
     if reduced:
-        rows = jnp.stack([jnp.sum(jnp.where(rank == r, np.arange(m), 0)) for r in range(kickers)])
+        rows = ranked(rank, kickers)
         inputs = jax.tree.map(lambda x: x[rows], inputs)
     ball_kind, ball_vector, kick_power = _pinned(*_with_ball_plan(*inputs, decay, b))
     if reduced:
@@ -405,7 +414,8 @@ def commands(choice: d.SkillChoice, body: Bodies, positions: jax.Array, sign: ja
                        jnp.where(tackles[:, None], to_goal, run_vector))
     plan_kind, vector, dash_power, kick_power = _pinned(plan_kind, vector, dash_power, kick_power)
     plan_kind = plan_kind.astype(jnp.int32)
-    clockwise = _clockwise(body, vector)
+    (clockwise,) = _pinned(-jnp.degrees(atan2(
+        body.facing[:, 0] * vector[:, 1] - body.facing[:, 1] * vector[:, 0], dot(body.facing, vector))))
     zeros = jnp.zeros_like(clockwise)
     moment = jnp.clip(clockwise * (1.0 + b.inertia_moment * body.speed), -180.0, 180.0)
     kicks, dashes = plan_kind == KICK, plan_kind == DASH

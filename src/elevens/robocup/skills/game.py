@@ -96,13 +96,12 @@ class SkillSoccer(RcssSoccer):
         sign = jnp.asarray(team_signs(params))[:, None]
         own = sign * state.positions  # [2n, 2] each in its own team's frame
         ball = sign * state.ball_position[None, :]
-        opponent_x = jnp.concatenate([  # each player's opponents' x in its team's frame
-            jnp.broadcast_to(state.positions[n:, 0], (n, n)),
-            jnp.broadcast_to(-state.positions[:n, 0], (n, n)),
-        ])
-        offside = controllers.offside_line(
-            opponent_x, jnp.ones((2 * n, n), bool), ball[:, 0], params.half_length
-        )
+        # One line a team (its players share it), each in its team's frame.
+        opponent_x = jnp.stack([state.positions[n:, 0], -state.positions[:n, 0]])
+        team_ball_x = jnp.stack([state.ball_position[0], -state.ball_position[0]])
+        offside = jnp.repeat(controllers.offside_line(
+            opponent_x, jnp.ones((2, n), bool), team_ball_x, params.half_length
+        ), n)
         return SkillContext(
             observer=np.arange(2 * n),  # static: the decode's tables are cut at trace time
             unum=np.tile(shirt_numbers(n), 2),
@@ -120,6 +119,13 @@ class SkillSoccer(RcssSoccer):
             return None
         ball = jnp.broadcast_to(state.ball_position, state.positions.shape)
         return controllers.nearest(state.positions, ball)
+
+    def kicking_rows(self, state: State) -> jax.Array | None:
+        """The ``kickers`` players nearest the ball (only they kick, ``controllers.commands``)."""
+        rank = self._rank(state)
+        if rank is None:
+            return None
+        return controllers.ranked(rank, self.kickers)
 
     def _near(self, state: State) -> jax.Array:
         """bool[2n]: the players that may play the ball (``kickers``)."""

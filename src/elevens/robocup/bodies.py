@@ -729,11 +729,12 @@ class RcssSoccer(Soccer):
             paid, left = dash_stamina(paced_power(power, tank, state.step), tank.stamina, b)
             power, effort = paid, tank.effort
             tank = dataclasses.replace(tank, stamina=jnp.where(dashes, left, tank.stamina))
-        dash = jnp.where(
+        # Into memory once: the motion's every column reads it.
+        (dash,) = materialised(jnp.where(
             dashes[:, None],
             dash_acceleration(power, command.dash_direction, body, effort, b),
             0.0,
-        )
+        ))
         positions, velocities = advance(
             state.positions, state.velocities, dash, b.player_accel_max, b.player_speed_max,
             b.player_decay,

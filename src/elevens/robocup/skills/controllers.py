@@ -334,7 +334,8 @@ def nearest(position: jax.Array, ball: jax.Array) -> jax.Array:
     offset = ball - position
     d2 = dot(offset, offset)
     i = np.arange(d2.shape[0])
-    nearer = (d2[None, :] < d2[:, None]) | ((d2[None, :] == d2[:, None]) & (i[None, :] < i[:, None]))
+    nearer = (d2[None, :] < d2[:, None]) | (
+        (d2[None, :] == d2[:, None]) & (i[None, :] < i[:, None]))
     return jnp.sum(nearer, axis=1, dtype=jnp.int32)
 
 
@@ -390,8 +391,9 @@ def commands(choice: d.SkillChoice, body: Bodies, positions: jax.Array, sign: ja
     run_kind, run_vector, dash_power = _run_plan(body, run_point, threshold2, b)
     chases = (kind == d.INTERCEPT) | ((kind == d.TACKLE) & ~(chance > 0.0))
     tackles = (kind == d.TACKLE) & ~chases
-    reduced = rank is not None and kickers < m
-    near = (rank < kickers) if reduced else jnp.ones(m, bool)
+    if kickers >= m:
+        rank = None
+    near = jnp.ones(m, bool) if rank is None else rank < kickers
     # The rows with the ball: a with-ball kind (the decode leaves it to players in reach) or
     # a chase that settles the ball in reach.
     with_ball = near & ((kind <= d.HOLD) | (chases & (in_reach > 0.0)))
@@ -400,11 +402,11 @@ def commands(choice: d.SkillChoice, body: Bodies, positions: jax.Array, sign: ja
     team = (sign < 0).astype(jnp.int32)
     other = jnp.where(team[:, None, None] == 0, positions[n:][None], positions[:n][None])
     inputs = (body, kind, target, world_point, direction_index, sign, other, to_goal)
-    if reduced:
+    if rank is not None:
         rows = ranked(rank, kickers)
         inputs = jax.tree.map(lambda x: x[rows], inputs)
     ball_kind, ball_vector, kick_power = _pinned(*_with_ball_plan(*inputs, decay, b))
-    if reduced:
+    if rank is not None:
         ball_kind, ball_vector, kick_power = (_scatter(rank, x, kickers)
                                               for x in (ball_kind, ball_vector, kick_power))
 
@@ -414,8 +416,8 @@ def commands(choice: d.SkillChoice, body: Bodies, positions: jax.Array, sign: ja
                        jnp.where(tackles[:, None], to_goal, run_vector))
     plan_kind, vector, dash_power, kick_power = _pinned(plan_kind, vector, dash_power, kick_power)
     plan_kind = plan_kind.astype(jnp.int32)
-    (clockwise,) = _pinned(-jnp.degrees(atan2(
-        body.facing[:, 0] * vector[:, 1] - body.facing[:, 1] * vector[:, 0], dot(body.facing, vector))))
+    # Into memory once: every command's field and the bodies' motion read the angle.
+    (clockwise,) = _pinned(_clockwise(body, vector))
     zeros = jnp.zeros_like(clockwise)
     moment = jnp.clip(clockwise * (1.0 + b.inertia_moment * body.speed), -180.0, 180.0)
     kicks, dashes = plan_kind == KICK, plan_kind == DASH

@@ -112,25 +112,24 @@ class SkillSoccer(RcssSoccer):
             & self._near(state),
         )
 
-    def _rank(self, state: State) -> jax.Array | None:
-        """Each player's rank by distance to the ball (``controllers.nearest``), or None when
-        every player may play the ball."""
-        if self.kickers is None or self.kickers >= self.num_players:
+    def _rank(self, state: State) -> tuple[jax.Array, int] | None:
+        """Each player's rank by distance to the ball (``controllers.nearest``) and how many
+        may play it, or None when every player may."""
+        k = self.kickers
+        if k is None or k >= self.num_players:
             return None
         ball = jnp.broadcast_to(state.ball_position, state.positions.shape)
-        return controllers.nearest(state.positions, ball)
+        return controllers.nearest(state.positions, ball), k
 
     def kicking_rows(self, state: State) -> jax.Array | None:
         """The ``kickers`` players nearest the ball (only they kick, ``controllers.commands``)."""
-        rank = self._rank(state)
-        if rank is None:
-            return None
-        return controllers.ranked(rank, self.kickers)
+        ranked = self._rank(state)
+        return None if ranked is None else controllers.ranked(*ranked)
 
     def _near(self, state: State) -> jax.Array:
         """bool[2n]: the players that may play the ball (``kickers``)."""
-        rank = self._rank(state)
-        return jnp.ones(self.num_players, bool) if rank is None else rank < self.kickers
+        ranked = self._rank(state)
+        return jnp.ones(self.num_players, bool) if ranked is None else ranked[0] < ranked[1]
 
     def decode(self, state: State, actions: jax.Array, params: EnvParams) -> SkillChoice:
         """What each player does for ``actions`` f32[2, n, 4] in ``state`` (after the
@@ -157,7 +156,7 @@ class SkillSoccer(RcssSoccer):
         )
         command = controllers.commands(
             choice, body, state.positions, jnp.asarray(team_signs(params)), params.half_length,
-            params.ball_friction, self.body, self._rank(state), self.kickers or m,
+            params.ball_friction, self.body, *(self._rank(state) or (None, m)),
         )
         return self.play_commands(key, state, command, params)
 

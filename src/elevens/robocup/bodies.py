@@ -127,7 +127,7 @@ def atan2(y: jax.Array, x: jax.Array) -> jax.Array:
           + np.float32(1.99777106478e-1)) * z - np.float32(3.33329491539e-1)) * z * t + t
     r = jnp.where(big, np.float32(np.pi / 4) + p, p)
     r = jnp.where(ay > ax, np.float32(np.pi / 2) - r, r)
-    r = jnp.where(x < 0.0, np.float32(np.pi) - r, r)
+    r = jnp.where(jnp.signbit(x), np.float32(np.pi) - r, r)
     return jnp.where(jnp.signbit(y), -r, r)
 
 

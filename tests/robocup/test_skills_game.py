@@ -436,14 +436,21 @@ def test_beyond_four_in_reach_only_the_four_nearest_play_the_ball() -> None:
     shoot = jnp.zeros_like(actions).at[..., 3].set(0.5)  # SHOOT for everyone
     gap = np.linalg.norm(np.asarray(states.positions - states.ball_position[:, None]), axis=-1)
     rank = np.argsort(np.argsort(gap, axis=1, kind="stable"), axis=1)
-    reach = gap <= SkillSoccer(11).body.kickable_distance
+    farther = (gap <= SkillSoccer(11).body.kickable_distance) & (rank >= 4)
+    assert farther.sum(axis=1).tolist() == [2] * len(gap)
+    env, every_env = SkillSoccer(11), SkillSoccer(11)
+    every_env.kickers = None
+    decoded = jax.vmap(env.decode, in_axes=(0, 0, None))(states, shoot, params).kind
+    np.testing.assert_array_equal(np.asarray(decoded)[farther], INTERCEPT)
+    decoded = jax.vmap(every_env.decode, in_axes=(0, 0, None))(states, shoot, params).kind
+    np.testing.assert_array_equal(np.asarray(decoded)[farther], SHOOT)
+    # The farther two never kick (with every player's plans some of them do); the four
+    # nearest kick as they would with every player's plans.
     nearest = np.asarray(_steps(4, params, states, shoot)[3].kicks)
     every = np.asarray(_steps(None, params, states, shoot)[3].kicks)
-    np.testing.assert_array_equal(every, reach)  # each one in reach kicks
-    np.testing.assert_array_equal(nearest, reach & (rank < 4))  # the four nearest only
-    env = SkillSoccer(11)
-    kind = np.asarray(jax.vmap(env.decode, in_axes=(0, 0, None))(states, shoot, params).kind)
-    np.testing.assert_array_equal(kind[reach & (rank >= 4)], INTERCEPT)
+    assert not nearest[farther].any() and every[farther].any()
+    np.testing.assert_array_equal(nearest[rank < 4], every[rank < 4])
+    assert nearest.any()
 
 
 def test_the_tackle_dice_are_jax_randoms_uniform_draws() -> None:

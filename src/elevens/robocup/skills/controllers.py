@@ -369,6 +369,8 @@ def commands(choice: d.SkillChoice, body: Bodies, positions: jax.Array, sign: ja
         choice.kind, choice.target, choice.point,
         tackle_probability(body.position, body.heading, body.ball, body.facing) > 0.0,
         _in_reach(body, b))
+    # DRIBBLE's direction (an angle) is left out: worked out where it is read, for the rows
+    # with the ball only.
     direction_index = choice.direction
     kind = kind.astype(jnp.int32)
     their_goal = sign[:, None] * jnp.stack([jnp.asarray(half_length), jnp.asarray(0.0)])
@@ -432,8 +434,8 @@ def commands(choice: d.SkillChoice, body: Bodies, positions: jax.Array, sign: ja
 
 
 def _scatter(rank: jax.Array, x: jax.Array, k: int) -> jax.Array:
-    """x[rank] f32[m, ...] for the rows of ``rank`` i32[m] below ``k`` (``x`` f32[k, ...]),
-    else 0: a select a row of ``x`` (a gather by rank is dearer on XLA's CPU backend)."""
+    """f32[m, ...]: row ``rank[i]`` of ``x`` f32[k, ...] for each row i of ``rank`` i32[m]
+    below ``k``, else 0 (one select a rank, elementwise)."""
     out = jnp.zeros(rank.shape + x.shape[1:], x.dtype)
     for r in range(k):
         out = jnp.where((rank == r).reshape(rank.shape + (1,) * (x.ndim - 1)), x[r], out)
@@ -480,7 +482,9 @@ def _with_ball_plan(body: Bodies, kind: jax.Array, target: jax.Array, world_poin
 
 def _pinned(*arrays: jax.Array) -> tuple[jax.Array, ...]:
     """The same arrays (f32[m] or f32[m, k]; integers and booleans come back as f32), computed
-    once into one buffer (``bodies.materialised``)."""
+    once into one buffer (``bodies.materialised``), laid out with the players last: the copy
+    runs along them (with a last axis of a few columns XLA's CPU backend leaves it
+    unvectorised, several times dearer)."""
     rows = [r.astype(jnp.float32) for a in arrays
             for r in (a.reshape(a.shape[0], -1).T)]
     (values,) = materialised(jnp.stack(rows))

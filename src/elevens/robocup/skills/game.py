@@ -186,8 +186,8 @@ _ROTATIONS = ((13, 15, 26, 6), (17, 29, 16, 24))
 def _threefry2x32(k1: jax.Array, k2: jax.Array, x1: jax.Array,
                   x2: jax.Array) -> tuple[jax.Array, jax.Array]:
     """The Threefry-2x32 block cipher (20 rounds) on uint32 words, as jax.random computes it,
-    written out: XLA's CPU backend runs jax's as a loop of 5 trips, some 90 us a draw at a
-    batch of 64 games, where this fuses into its consumers."""
+    written out: XLA's CPU backend runs jax's as a loop of 5 trips of several kernels each,
+    where this fuses into one."""
     ks = (k1, k2, k1 ^ k2 ^ np.uint32(0x1BD11BDA))
     x1, x2 = x1 + ks[0], x2 + ks[1]
     for i in range(5):
@@ -201,8 +201,10 @@ def _threefry2x32(k1: jax.Array, k2: jax.Array, x1: jax.Array,
 
 def tackle_draws(key: jax.Array, m: int) -> jax.Array:
     """f32[m]: ``jax.random.uniform(jax.random.fold_in(key, 1), (m,))``, the same values
-    (threefry keys, jax's partitionable counters), drawn without the rolled loops."""
-    if str(jax.random.key_impl(key)) != "threefry2x32":
+    (threefry keys, jax's partitionable counters; else jax.random's own draw), drawn without
+    its rolled loops."""
+    if (str(jax.random.key_impl(key)) != "threefry2x32"
+            or not getattr(jax.config, "jax_threefry_partitionable", True)):
         return jax.random.uniform(jax.random.fold_in(key, 1), (m,))
     data = jax.random.key_data(key)
     k1, k2 = _threefry2x32(data[0], data[1], jnp.uint32(0), jnp.uint32(1))  # fold_in(key, 1)

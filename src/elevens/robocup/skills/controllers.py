@@ -341,8 +341,8 @@ def nearest(position: jax.Array, ball: jax.Array) -> jax.Array:
 
 def ranked(rank: jax.Array, k: int) -> jax.Array:
     """i32[k]: the rows of ranks 0..k-1 of ``rank`` i32[m] (:func:`nearest`), nearest first."""
-    return jnp.stack([jnp.sum(jnp.where(rank == r, np.arange(rank.shape[0]), 0))
-                      for r in range(k)])
+    return jnp.sum(jnp.where(rank[None, :] == np.arange(k)[:, None], np.arange(rank.shape[0]), 0),
+                   axis=1)
 
 
 def commands(choice: d.SkillChoice, body: Bodies, positions: jax.Array, sign: jax.Array,

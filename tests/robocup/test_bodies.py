@@ -71,6 +71,19 @@ def test_advance_caps_the_acceleration_and_speed_then_decays() -> None:
     )
 
 
+def test_atan2_is_jnp_arctan2_to_a_few_ulps() -> None:
+    rng = np.random.default_rng(0)
+    scale = rng.choice([1e-3, 1.0, 1e3], (2, 100_000))
+    y, x = (rng.normal(size=(2, 100_000)) * scale).astype(np.float32)
+    edges = np.array([0.0, -0.0, 1.0, -1.0, 2.5, -2.5], np.float32)
+    y = np.concatenate([y, np.repeat(edges, len(edges))])
+    x = np.concatenate([x, np.tile(edges, len(edges))])
+    ours = np.asarray(jax.jit(rcss.atan2)(y, x))
+    np.testing.assert_allclose(ours, np.arctan2(y, x), rtol=0, atol=3e-7)
+    # Signed zeros and the axes as arctan2 gives them (atan2(-0, -1) = -pi).
+    np.testing.assert_array_equal(np.signbit(ours), np.signbit(np.arctan2(y, x)))
+
+
 def test_jit_vmap_and_eager_agree() -> None:
     rng = np.random.default_rng(0)
     power = rng.uniform(0, 100, 16).astype(np.float32)

@@ -370,6 +370,102 @@ def test_skills_naive_decides_alike_on_either_side() -> None:
                                np.asarray(after.positions[:2]), atol=1e-4)
 
 
+# ------------------------------------------------------------------ the step's shortcuts
+def _ball_in_reach_of(in_reach: int, games: int = 16,
+                      seed: int = 0) -> tuple[Any, State, jax.Array]:
+    """11 v 11 game states with ``in_reach`` players placed around the ball within kicking
+    reach (0.45 to 1.0 m off it) and every other one at least 3 m away, random headings and
+    velocities; and random actions (every kind) for them."""
+    rng = np.random.default_rng(seed)
+    env = SkillSoccer(11)
+    params = env.default_params()
+    starts, _ = jax.vmap(env.reset, in_axes=(0, None))(
+        jax.random.split(jax.random.key(seed), games), params)
+    ball = rng.uniform([-40.0, -25.0], [40.0, 25.0], (games, 1, 2))
+    positions = np.asarray(starts.positions, np.float64)
+    offset = positions - ball
+    distance = np.linalg.norm(offset, axis=-1, keepdims=True)
+    positions = np.where(distance < 3.0, ball + offset / np.maximum(distance, 1e-3) * 3.0,
+                         positions)
+    for g in range(games):
+        chosen = rng.choice(22, in_reach, replace=False)
+        angle = rng.uniform(0, 2 * np.pi) + 2 * np.pi * np.arange(in_reach) / in_reach
+        radius = rng.uniform(0.45, 1.0, in_reach)
+        positions[g, chosen] = ball[g] + radius[:, None] * np.stack(
+            [np.cos(angle), np.sin(angle)], axis=1)
+    states = starts.replace(
+        positions=jnp.asarray(positions, jnp.float32),
+        velocities=jnp.asarray(rng.uniform(-0.3, 0.3, (games, 22, 2)), jnp.float32),
+        headings=jnp.asarray(rng.uniform(-np.pi, np.pi, (games, 22)), jnp.float32),
+        ball_position=jnp.asarray(ball[:, 0], jnp.float32),
+        ball_velocity=jnp.asarray(rng.uniform(-0.5, 0.5, (games, 2)), jnp.float32),
+    )
+    return params, states, env.sample_actions(jax.random.key(seed + 1), (games,))
+
+
+def _steps(kickers: int | None, params: Any, states: State, actions: jax.Array) -> Any:
+    env = SkillSoccer(11)
+    env.kickers = kickers
+    keys = jax.random.split(jax.random.key(3), actions.shape[0])
+    return jax.jit(jax.vmap(env.transition, in_axes=(0, 0, 0, None)))(keys, states, actions,
+                                                                       params)
+
+
+@pytest.mark.parametrize("in_reach", [1, 2, 4])
+def test_with_at_most_four_in_reach_the_nearest_plans_equal_every_players(
+        in_reach: int) -> None:
+    # The with-ball plans worked out for the four players nearest the ball only (the game's
+    # default) give what every player's plans give. The kinds, kicks and tackles are equal;
+    # the values to rounding: XLA's CPU backend rounds a fused sum of products differently
+    # in arrays of other shapes (four rows, not 22), as between vmap and one game.
+    params, states, actions = _ball_in_reach_of(in_reach)
+    nearest = _steps(4, params, states, actions)
+    every = _steps(None, params, states, actions)
+    for a, b in zip(jax.tree.leaves(nearest), jax.tree.leaves(every), strict=True):
+        a, b = np.asarray(a), np.asarray(b)
+        if a.dtype.kind in "biu":
+            np.testing.assert_array_equal(a, b)
+        else:
+            np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-5)
+    kicks = np.asarray(every[3].kicks)
+    assert kicks.any(axis=1).mean() > 0.25  # the with-ball plans were played
+
+
+def test_beyond_four_in_reach_only_the_four_nearest_play_the_ball() -> None:
+    params, states, actions = _ball_in_reach_of(6)
+    shoot = jnp.zeros_like(actions).at[..., 3].set(0.5)  # SHOOT for everyone
+    gap = np.linalg.norm(np.asarray(states.positions - states.ball_position[:, None]), axis=-1)
+    rank = np.argsort(np.argsort(gap, axis=1, kind="stable"), axis=1)
+    farther = (gap <= SkillSoccer(11).body.kickable_distance) & (rank >= 4)
+    assert farther.sum(axis=1).tolist() == [2] * len(gap)
+    env, every_env = SkillSoccer(11), SkillSoccer(11)
+    every_env.kickers = None
+    decoded = jax.vmap(env.decode, in_axes=(0, 0, None))(states, shoot, params).kind
+    np.testing.assert_array_equal(np.asarray(decoded)[farther], INTERCEPT)
+    decoded = jax.vmap(every_env.decode, in_axes=(0, 0, None))(states, shoot, params).kind
+    np.testing.assert_array_equal(np.asarray(decoded)[farther], SHOOT)
+    # The farther two never kick (with every player's plans some of them do); the four
+    # nearest kick as they would with every player's plans.
+    nearest = np.asarray(_steps(4, params, states, shoot)[3].kicks)
+    every = np.asarray(_steps(None, params, states, shoot)[3].kicks)
+    assert not nearest[farther].any() and every[farther].any()
+    np.testing.assert_array_equal(nearest[rank < 4], every[rank < 4])
+    assert nearest.any()
+
+
+def test_the_tackle_dice_are_jax_randoms_uniform_draws() -> None:
+    from elevens.robocup.skills.game import tackle_draws
+
+    keys = jax.random.split(jax.random.key(11), 50)
+    ours = jax.jit(jax.vmap(lambda k: tackle_draws(k, 22)))(keys)
+    theirs = jax.vmap(lambda k: jax.random.uniform(jax.random.fold_in(k, 1), (22,)))(keys)
+    np.testing.assert_array_equal(np.asarray(ours), np.asarray(theirs))
+    other = jax.random.key(11, impl="rbg")  # another generator: jax.random's own draw
+    np.testing.assert_array_equal(
+        np.asarray(tackle_draws(other, 5)),
+        np.asarray(jax.random.uniform(jax.random.fold_in(other, 1), (5,))))
+
+
 # ------------------------------------------------------------------ skills_naive
 SCENE = Scene(
     ours=np.stack([[-40.0, -25.0 + 5.0 * k] for k in range(11)]).astype(np.float32),

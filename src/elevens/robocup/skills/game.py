@@ -25,7 +25,14 @@ import numpy as np
 from elevens.env.params import EnvParams
 from elevens.env.physics import team_signs
 from elevens.env.state import State
-from elevens.robocup.bodies import TACKLE, Commands, RcssSoccer, kickable, rcss_field
+from elevens.robocup.bodies import (
+    TACKLE,
+    Commands,
+    RcssSoccer,
+    kickable,
+    materialised,
+    rcss_field,
+)
 from elevens.robocup.sim import SERVER_FIELD, RcssEnvConfig
 from elevens.robocup.skills import controllers
 from elevens.robocup.skills.decode import (
@@ -48,7 +55,9 @@ from elevens.train.config import (
     register_preset,
 )
 
-__all__ = ["SkillSoccer", "SkillsEnvConfig", "register", "skills_config", "skills_field"]
+__all__ = [
+    "SkillSoccer", "SkillsEnvConfig", "register", "skills_config", "skills_field", "tackle_draws",
+]
 
 
 def skills_field(players_per_team: int = 11, **overrides: Any) -> EnvParams:
@@ -62,6 +71,9 @@ class SkillSoccer(RcssSoccer):
     ``RcssSoccer``'s, with tackles (``ball_pushes``)."""
 
     actions: int = SKILL_ACTION_SIZE
+    kickers: int | None = controllers.KICKERS
+    """The players nearest the ball that may play it (``controllers.commands``): a with-ball
+    kind of a farther player in kicking reach intercepts (None: every player in reach)."""
 
     def default_params(self, **overrides: Any) -> EnvParams:
         return skills_field(self.players_per_team, **overrides)
@@ -84,21 +96,40 @@ class SkillSoccer(RcssSoccer):
         sign = jnp.asarray(team_signs(params))[:, None]
         own = sign * state.positions  # [2n, 2] each in its own team's frame
         ball = sign * state.ball_position[None, :]
-        opponent_x = jnp.concatenate([  # each player's opponents' x in its team's frame
-            jnp.broadcast_to(state.positions[n:, 0], (n, n)),
-            jnp.broadcast_to(-state.positions[:n, 0], (n, n)),
-        ])
-        offside = controllers.offside_line(
-            opponent_x, jnp.ones((2 * n, n), bool), ball[:, 0], params.half_length
-        )
+        # One line a team (its players share it), each in its team's frame.
+        opponent_x = jnp.stack([state.positions[n:, 0], -state.positions[:n, 0]])
+        team_ball_x = jnp.stack([state.ball_position[0], -state.ball_position[0]])
+        offside = jnp.repeat(controllers.offside_line(
+            opponent_x, jnp.ones((2, n), bool), team_ball_x, params.half_length
+        ), n)
         return SkillContext(
             observer=np.arange(2 * n),  # static: the decode's tables are cut at trace time
             unum=np.tile(shirt_numbers(n), 2),
             position=own,
             ball=ball,
             offside_x=offside,
-            kickable=kickable(state.positions, state.ball_position[None, :], self.body),
+            kickable=kickable(state.positions, state.ball_position[None, :], self.body)
+            & self._near(state),
         )
+
+    def _rank(self, state: State) -> tuple[jax.Array, int] | None:
+        """Each player's rank by distance to the ball (``controllers.nearest``) and how many
+        may play it, or None when every player may."""
+        k = self.kickers
+        if k is None or k >= self.num_players:
+            return None
+        ball = jnp.broadcast_to(state.ball_position, state.positions.shape)
+        return controllers.nearest(state.positions, ball), k
+
+    def kicking_rows(self, state: State) -> jax.Array | None:
+        """The ``kickers`` players nearest the ball (only they kick, ``controllers.commands``)."""
+        ranked = self._rank(state)
+        return None if ranked is None else controllers.ranked(*ranked)
+
+    def _near(self, state: State) -> jax.Array:
+        """bool[2n]: the players that may play the ball (``kickers``)."""
+        ranked = self._rank(state)
+        return jnp.ones(self.num_players, bool) if ranked is None else ranked[0] < ranked[1]
 
     def decode(self, state: State, actions: jax.Array, params: EnvParams) -> SkillChoice:
         """What each player does for ``actions`` f32[2, n, 4] in ``state`` (after the
@@ -125,7 +156,7 @@ class SkillSoccer(RcssSoccer):
         )
         command = controllers.commands(
             choice, body, state.positions, jnp.asarray(team_signs(params)), params.half_length,
-            params.ball_friction, self.body,
+            params.ball_friction, self.body, *(self._rank(state) or (None, m)),
         )
         return self.play_commands(key, state, command, params)
 
@@ -136,7 +167,8 @@ class SkillSoccer(RcssSoccer):
         and pushes the ball towards its direction."""
         ball = jnp.broadcast_to(state.ball_position, state.positions.shape)
         chance = controllers.tackle_probability(state.positions, state.headings, ball)
-        draw = jax.random.uniform(jax.random.fold_in(key, 1), (self.num_players,))
+        # The draws once into memory: else each consumer of ``won`` works the cipher out again.
+        (draw,) = materialised(tackle_draws(key, self.num_players))
         won = (command.kind == TACKLE) & (draw < chance)
         push = controllers.tackle_acceleration(
             command.kick_direction, state.positions, state.headings, ball
@@ -146,6 +178,40 @@ class SkillSoccer(RcssSoccer):
     def sample_actions(self, key: jax.Array, shape: tuple[int, ...] = ()) -> jax.Array:
         """Uniform random actions f32[*shape, 2, n, 4]: every kind, every slot, every point."""
         return random_actions(key, (*shape, 2, self.players_per_team))
+
+
+_ROTATIONS = ((13, 15, 26, 6), (17, 29, 16, 24))
+
+
+def _threefry2x32(k1: jax.Array, k2: jax.Array, x1: jax.Array,
+                  x2: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """The Threefry-2x32 block cipher (20 rounds) on uint32 words, as jax.random computes it,
+    written out: XLA's CPU backend runs jax's as a loop of 5 trips of several kernels each,
+    where this fuses into one."""
+    ks = (k1, k2, k1 ^ k2 ^ np.uint32(0x1BD11BDA))
+    x1, x2 = x1 + ks[0], x2 + ks[1]
+    for i in range(5):
+        for r in _ROTATIONS[i % 2]:
+            x1 = x1 + x2
+            x2 = x1 ^ ((x2 << np.uint32(r)) | (x2 >> np.uint32(32 - r)))
+        x1 = x1 + ks[(i + 1) % 3]
+        x2 = x2 + ks[(i + 2) % 3] + np.uint32(i + 1)
+    return x1, x2
+
+
+def tackle_draws(key: jax.Array, m: int) -> jax.Array:
+    """f32[m]: ``jax.random.uniform(jax.random.fold_in(key, 1), (m,))``, the same values
+    (threefry keys, jax's partitionable counters; else jax.random's own draw), drawn without
+    its rolled loops."""
+    if (str(jax.random.key_impl(key)) != "threefry2x32"
+            or not getattr(jax.config, "jax_threefry_partitionable", True)):
+        return jax.random.uniform(jax.random.fold_in(key, 1), (m,))
+    data = jax.random.key_data(key)
+    k1, k2 = _threefry2x32(data[0], data[1], jnp.uint32(0), jnp.uint32(1))  # fold_in(key, 1)
+    b1, b2 = _threefry2x32(k1, k2, jnp.zeros(m, jnp.uint32), jnp.arange(m, dtype=jnp.uint32))
+    # uniform's mantissa trick: 23 random bits under the exponent of 1.0, minus 1.
+    bits = ((b1 ^ b2) >> np.uint32(9)) | np.uint32(0x3F800000)
+    return jax.lax.bitcast_convert_type(bits, jnp.float32) - 1.0
 
 
 @dataclasses.dataclass(frozen=True)

@@ -5,7 +5,10 @@ a team (start.sh, the players, the latency report) with a stand-in for the proxy
 
 from __future__ import annotations
 
+import os
+import re
 import stat
+import subprocess
 import sys
 import threading
 import time
@@ -324,3 +327,19 @@ def test_the_command_plays_the_team_and_prints_its_report(tmp_path: Path) -> Non
     assert args[args.index("--rpc-type") + 1] == "thrift"
     assert args[args.index("-n") + 1] == "11"  # every player of the team starts
     assert '"requests": 55' in (folder / "out").read_text()  # the fake team's own count
+
+
+def test_the_latency_script_times_every_stage_of_a_cycle() -> None:
+    # scripts/skills_latency.py is how the docs' latency figures are taken apart; keep it working.
+    root = Path(__file__).resolve().parents[2]
+    done = subprocess.run(
+        [sys.executable, str(root / "scripts" / "skills_latency.py"), "stages", "3"],
+        cwd=root, env={**os.environ, "PYTHONPATH": f"{root / 'src'}{os.pathsep}{root}"},
+        capture_output=True, text=True, timeout=300,
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.startswith("3 cycles of 11 States")
+    for stage in ("decode", "observe", "decide", "actions", "encode", "all"):
+        line = next(x for x in done.stdout.splitlines() if f"a cycle's {stage} " in x)
+        p50, p99 = (float(x) for x in re.findall(r"p(?:50|99) ([0-9.]+)", line))
+        assert 0 < p50 <= p99, line

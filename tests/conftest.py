@@ -10,6 +10,19 @@ import tempfile
 if os.environ.get("PYTEST_XDIST_WORKER"):
     os.environ.setdefault("XLA_PYTHON_CLIENT_PREALLOCATE", "false")
 
+# Much of the suite's time is XLA compiling small programs that then run for milliseconds.
+# The suite checks what programs compute, not how fast: LLVM at -O1 without its expensive
+# passes compiles faster and still runs the long games well (-O0 compiles faster still but
+# runs the panel's games at half speed). Runs, benches and the CLI keep XLA's defaults;
+# ELEVENS_TEST_XLA_DEFAULTS=1 runs the suite with them too. Set before jax starts its
+# backend; subprocesses a test starts inherit it.
+_FAST_COMPILE = ("--xla_backend_optimization_level=1", "--xla_llvm_disable_expensive_passes=true")
+if not os.environ.get("ELEVENS_TEST_XLA_DEFAULTS"):
+    _flags = os.environ.get("XLA_FLAGS", "").split()
+    _names = {flag.split("=")[0] for flag in _flags}
+    _flags += [flag for flag in _FAST_COMPILE if flag.split("=")[0] not in _names]
+    os.environ["XLA_FLAGS"] = " ".join(_flags)
+
 import jax  # noqa: E402
 import pytest  # noqa: E402
 from hypothesis import settings  # noqa: E402

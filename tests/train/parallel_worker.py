@@ -15,7 +15,9 @@ import sys
 
 # Before JAX starts: two CPU devices for the "devices" mode, one for each process otherwise.
 if __name__ == "__main__" and sys.argv[1] == "devices":
-    os.environ["XLA_FLAGS"] = "--xla_force_host_platform_device_count=2"
+    os.environ["XLA_FLAGS"] = (
+        os.environ.get("XLA_FLAGS", "") + " --xla_force_host_platform_device_count=2"
+    ).strip()
 
 import jax
 import numpy as np

@@ -31,7 +31,9 @@ WAIT_S = 1800.0
 
 def run_worker(*args: str, timeout: float = WAIT_S) -> subprocess.Popen[str]:
     env = {**os.environ, "PYTHONPATH": f"{ROOT}{os.pathsep}{ROOT / 'src'}"}
-    env.pop("XLA_FLAGS", None)
+    # The suite's compile flags pass on; a device count is the worker's own to set.
+    flags = os.environ.get("XLA_FLAGS", "").split()
+    env["XLA_FLAGS"] = " ".join(f for f in flags if "device_count" not in f)
     return subprocess.Popen(
         [sys.executable, "-m", "tests.train.parallel_worker", *args],
         cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,

@@ -95,7 +95,8 @@ def test_a_raw_key_is_refused() -> None:
 
 
 def test_jit_and_eager_unroll_agree() -> None:
-    env, params = elevens.make("2v2", episode_length=3)  # eager runs op by op: seconds a step
+    # Eager runs op by op, seconds a step: two steps carry one step's state into the next.
+    env, params = elevens.make("2v2", episode_length=2)
     keys = jax.random.split(jax.random.key(1), 3)
     play = functools.partial(
         _play, env, params, PolicyActor(RandomTeam()), PolicyActor(TeamworkTeam())

@@ -234,19 +234,22 @@ def test_variants_trace(overrides: dict) -> None:
 
 
 def test_squashed_entropy_bonus_is_the_action_entropy_estimate() -> None:
-    gaussian_config = tiny_config(**{"games_per_iteration": 16}).learner
+    # The file's compiled chunk gives the Gaussian estimate; the squashed chunk starts from the
+    # same state and key, so its first iteration learns from the same rollout (the estimator
+    # changes the update only). One compile of its own, not a rollout's and two updates'.
+    gaussian_config = tiny_config().learner
     gaussian = make_learner(gaussian_config, gaussian_config.make_env())
-    squashed_config = tiny_config(
-        **{"games_per_iteration": 16, "ppo.entropy_estimator": "squashed"}
-    ).learner
+    squashed_config = tiny_config(**{"ppo.entropy_estimator": "squashed"}).learner
     squashed = make_learner(squashed_config, squashed_config.make_env())
     state = gaussian.init(jax.random.key(0))
-    data = jax.jit(gaussian.collect)(state, jax.random.key(1))
-    learned = {
-        name: jax.jit(trainer.learn)(state.params, state.opt_state, data, jax.random.key(2))
+    metrics = {
+        name: trainer.update_chunk(state)[1]
         for name, trainer in (("gaussian", gaussian), ("squashed", squashed))
     }
-    entropy = {name: float(result.update.metrics.entropy) for name, result in learned.items()}
+    # The same games: the rollout does not depend on the estimator.
+    for name in ("train/goals_for", "train/goals_against", "train/mean_score"):
+        assert float(metrics["gaussian"][name][0]) == float(metrics["squashed"][name][0]), name
+    entropy = {name: float(chunk["train/entropy"][0]) for name, chunk in metrics.items()}
     # At init log_std is about 0 in both action dimensions: the Gaussian's entropy is about
     # 2 * 1.42, and the squashed estimate about 2 * 0.75 lower (E log(1 - tanh(u)^2) = -0.75).
     assert entropy["gaussian"] == pytest.approx(2.84, abs=0.1)
@@ -519,22 +522,24 @@ def test_a_mixed_run_trains_one_state_at_two_sizes_and_resumes_bit_for_bit(
     # every other chunk of K = 2; each size plays a quarter of its games against naive.
     mixed = {"env.mix": ("2v2",), "env.mix_shares": (0.5,), "run.eval_every": 0,
              "opponent.mix": ("naive=0.25",)}
-    straight = train(tiny_config(tmp_path / "a", **mixed, **{"run.iterations": 6}),
+    # 4 iterations: the state passes from one size to the other, and the resumed run starts
+    # on the second size's chunk (the schedule's position comes back with the checkpoint).
+    straight = train(tiny_config(tmp_path / "a", **mixed, **{"run.iterations": 4}),
                      progress=False)
-    assert straight.iteration == 6
-    assert straight.env_steps == (2 * 64 + 2 * 32 + 2 * 64) * STEPS
+    assert straight.iteration == 4
+    assert straight.env_steps == (2 * 64 + 2 * 32) * STEPS
     curves = read_metrics_csv(tmp_path / "a")
-    np.testing.assert_array_equal(curves["env/players_per_team"].values, [1, 1, 2, 2, 1, 1])
-    assert len(curves["opponent/naive/outcome"].values) == 6  # both sizes met the fixed team
+    np.testing.assert_array_equal(curves["env/players_per_team"].values, [1, 1, 2, 2])
+    assert len(curves["opponent/naive/outcome"].values) == 4  # both sizes met the fixed team
     np.testing.assert_array_equal(
         np.diff(curves["time/env_steps"].values, prepend=0.0),
-        [64 * STEPS] * 2 + [32 * STEPS] * 2 + [64 * STEPS] * 2,
+        [64 * STEPS] * 2 + [32 * STEPS] * 2,
     )
     # Stopped after the first chunk and resumed: the same schedule, the same bits.
     first = tiny_config(tmp_path / "b", **mixed, **{"run.iterations": 2})
     train(first, progress=False)
     resumed = train(
-        dataclasses.replace(first, run=dataclasses.replace(first.run, iterations=6)),
+        dataclasses.replace(first, run=dataclasses.replace(first.run, iterations=4)),
         resume=True, progress=False,
     )
     assert resumed.env_steps == straight.env_steps

@@ -339,7 +339,7 @@ def test_ppo_learns_the_right_kind_and_the_nearest_opponent() -> None:
     right_kind, right_pointer = modes()
     assert right_kind < 0.5 and right_pointer < 0.5  # not right by chance at the start
     rewards = []
-    for iteration in range(25):
+    for iteration in range(16):  # right_pointer: 0.93 after 12 iterations, 0.98 after 16
         variables, opt_state, reward = _ppo_iteration(
             policy, variables, opt_state, obs, jax.random.key(100 + iteration)
         )

@@ -574,22 +574,22 @@ def test_init_from_a_checkpoint_starts_from_its_networks_and_resumes_with_them(
 ) -> None:
     from elevens.runs.teams import load_learner_params
 
-    # A source with other networks than small_config's, written by hand (an init, no training).
-    networks = {**SMALL_NETWORKS, "network.features": 24}
-    source_config = make_config("2v2", **{"env.players_per_team": 1, **networks})
+    # A source with small_config's networks, written by hand (an init, no training): the run
+    # from it compiles what the tests above compiled.
+    source_config = make_config("2v2", **{"env.players_per_team": 1, **SMALL_NETWORKS})
     source_state = make_learner(
         source_config.learner, source_config.learner.make_env()
     ).init(jax.random.key(3))
     with Checkpointer(tmp_path / "source" / "checkpoints") as checkpointer:
         checkpointer.save(0, source_state, source_config.to_dict(), {"iteration": 0})
     # Its networks must be this run's: a clear refusal names the flags to pass.
-    with pytest.raises(RunRefusedError, match="other networks.*--network.features 24"):
-        train_robocup(small_config(tmp_path, **{"run.init_from": str(tmp_path / "source")}),
+    with pytest.raises(RunRefusedError, match="other networks.*--network.features 16"):
+        train_robocup(small_config(tmp_path, **{"run.init_from": str(tmp_path / "source"),
+                                                "network.features": 24}),
                       env_factory=lambda i: SimEnv(1), progress=False)
     # No time to play: the run saves its starting point, which must be the source's networks.
     target = small_config(
-        tmp_path, **{"run.init_from": str(tmp_path / "source"), "run.max_minutes": 1e-9,
-                     **networks}
+        tmp_path, **{"run.init_from": str(tmp_path / "source"), "run.max_minutes": 1e-9}
     )
     result = train_robocup(target, env_factory=lambda i: SimEnv(1), progress=False)
     assert result.iteration == 0
@@ -601,12 +601,12 @@ def test_init_from_a_checkpoint_starts_from_its_networks_and_resumes_with_them(
         load_learner_params(str(tmp_path / "run" / "nothing-here"))
     # A resume keeps the networks (a resume ignores init_from, as elevens train does).
     resumed = train_robocup(
-        small_config(tmp_path, **{"run.max_minutes": 1e-9, **networks}), resume=True,
+        small_config(tmp_path, **{"run.max_minutes": 1e-9}), resume=True,
         env_factory=lambda i: SimEnv(1), progress=False,
     )
     assert resumed.iteration == 0 and not resumed.interrupted
     saved = json.loads((tmp_path / "run" / "config.json").read_text())
-    assert saved["learner"]["network"]["features"] == 24
+    assert saved["learner"]["network"]["features"] == 16
     assert saved["learner"]["network"]["lstm_features"] == 8
 
 

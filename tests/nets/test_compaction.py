@@ -149,7 +149,8 @@ def test_an_empty_group_compacts_to_nothing() -> None:
     assert isinstance(compaction, VisibleCompaction)
 
 
-@pytest.mark.parametrize("n", [4, 11])
+# 11 a side runs the same code as 4 on larger groups (three compiles of its own): --slow.
+@pytest.mark.parametrize("n", [4, pytest.param(11, marks=pytest.mark.slow)])
 def test_compacted_policy_equals_the_dense_pass_in_values_and_gradients(n: int) -> None:
     policy = AttentionPolicy(features=16, num_heads=2, lstm_features=8)
     params = random_params(policy, n)

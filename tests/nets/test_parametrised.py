@@ -59,8 +59,9 @@ def hand_log_prob(kind: int, pointer: int, u: np.ndarray) -> float:
 def test_log_prob_of_samples_matches_a_hand_computation() -> None:
     dist = small_distribution()
     keys = jax.random.split(jax.random.key(0), 40)
-    samples = jax.vmap(dist.sample)(keys)
-    log_probs = jax.vmap(dist.log_prob)(samples.pre_tanh)
+    # Compiled: eager JAX would compile each small op of the vmapped draw on its own.
+    samples = jax.jit(jax.vmap(dist.sample))(keys)
+    log_probs = jax.jit(jax.vmap(dist.log_prob))(samples.pre_tanh)
     seen = set()
     for raw, action, log_prob in zip(
         np.asarray(samples.pre_tanh[:, 0]), np.asarray(samples.action[:, 0]),
@@ -111,7 +112,7 @@ def test_slots_out_of_view_have_zero_probability() -> None:
         raw = jnp.array([[kind, 1.0, 0.0, 0.0]])
         assert float(jnp.exp(dist.log_prob(raw))[0]) == 0.0
     keys = jax.random.split(jax.random.key(1), 500)
-    pointers = np.asarray(jax.vmap(dist.sample)(keys).pre_tanh[:, 0, 1])
+    pointers = np.asarray(jax.jit(jax.vmap(dist.sample))(keys).pre_tanh[:, 0, 1])
     assert set(pointers.tolist()) == {0.0, 2.0}
 
 
@@ -147,7 +148,8 @@ def real_observations(preset: str, games: int, seed: int = 0) -> tuple[Observati
     """Both teams' observations of ``games`` kick-offs: leading [games * 2, n]."""
     env, params = elevens.make(preset)
     keys = jax.random.split(jax.random.key(seed), games)
-    _, obs = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
+    # Compiled: one program costs less than eager JAX compiling each op of the reset alone.
+    _, obs = jax.jit(jax.vmap(env.reset, in_axes=(0, None)))(keys, params)
     n = env.players_per_team
     return jax.tree.map(lambda x: x.reshape(games * 2, n, *x.shape[3:]), obs), n
 
@@ -196,7 +198,8 @@ def test_the_pointer_attends_over_the_player_slots_in_view() -> None:
 
 
 def test_jit_equals_eager_and_unroll_equals_steps_and_compaction_equals_dense() -> None:
-    obs, n = real_observations("4v4", 3)
+    # The pointer test's games: its eager passes already compiled the ops of these shapes.
+    obs, n = real_observations("3v3", 4)
     policy = small_policy()
     steps = 3
     obs_seq = jax.tree.map(lambda x: jnp.stack([x] * steps), obs)
@@ -236,7 +239,7 @@ def test_jit_equals_eager_and_unroll_equals_steps_and_compaction_equals_dense() 
             stepped, jax.tree.map(lambda x, t=t: x[t], obs_seq), reset_seq[t]
         )
         close(out, jax.tree.map(lambda x, t=t: x[t], dense))
-        assert np.isfinite(log_prob).all() and sample.action.shape == (6, n, 4)
+        assert np.isfinite(log_prob).all() and sample.action.shape == (8, n, 4)
 
 
 def test_network_team_plays_the_mode_and_samples() -> None:
@@ -244,12 +247,16 @@ def test_network_team_plays_the_mode_and_samples() -> None:
     policy = small_policy(kinds=2)
     team = NetworkTeam(policy=policy, deterministic=True)
     one = jax.tree.map(lambda x: x[0], obs)
-    variables = policy.init(jax.random.key(0), team.init_carry(n), one, jnp.zeros(n, bool))
-    _, mode = team.act(variables, team.init_carry(n), one, jax.random.key(1))
-    _, again = team.act(variables, team.init_carry(n), one, jax.random.key(2))
+    # Compiled, as a match plays a team (eager JAX would compile each op of the pass alone).
+    variables = jax.jit(policy.init)(
+        jax.random.key(0), team.init_carry(n), one, jnp.zeros(n, bool)
+    )
+    act = jax.jit(team.act)
+    _, mode = act(variables, team.init_carry(n), one, jax.random.key(1))
+    _, again = act(variables, team.init_carry(n), one, jax.random.key(2))
     np.testing.assert_array_equal(mode, again)
     sampler = NetworkTeam(policy=policy)
-    _, sampled = sampler.act(variables, sampler.init_carry(n), one, jax.random.key(1))
+    _, sampled = jax.jit(sampler.act)(variables, sampler.init_carry(n), one, jax.random.key(1))
     assert mode.shape == sampled.shape == (n, 4)
     assert np.all(np.isin(np.asarray(sampled[:, 0]), [0, 1]))
     assert np.all((sampled[:, 1] >= 0) & (sampled[:, 1] < 2 * n - 1))
@@ -317,19 +324,22 @@ def test_ppo_learns_the_right_kind_and_the_nearest_opponent() -> None:
     assert sees.mean() > 0.3
     policy = small_policy(kinds=3, use_lstm=False)
     reset = jnp.ones(obs.entity_mask.shape[:-1], bool)
-    variables = policy.init(jax.random.key(0), policy.initial_carry(reset.shape), obs, reset)
+    variables = jax.jit(policy.init)(
+        jax.random.key(0), policy.initial_carry(reset.shape), obs, reset
+    )
     opt_state = optax.adam(3e-3).init(variables)
     target = np.asarray(nearest_opponent(obs, n))
+    apply = jax.jit(policy.apply)
 
     def modes() -> tuple[float, float]:
-        _, out = policy.apply(variables, policy.initial_carry(reset.shape), obs, reset)
+        _, out = apply(variables, policy.initial_carry(reset.shape), obs, reset)
         mode = np.asarray(out.distribution().mode())
         return np.mean(mode[..., 0] == RIGHT_KIND), np.mean((mode[..., 1] == target)[sees])
 
     right_kind, right_pointer = modes()
     assert right_kind < 0.5 and right_pointer < 0.5  # not right by chance at the start
     rewards = []
-    for iteration in range(25):
+    for iteration in range(16):  # right_pointer: 0.93 after 12 iterations, 0.98 after 16
         variables, opt_state, reward = _ppo_iteration(
             policy, variables, opt_state, obs, jax.random.key(100 + iteration)
         )

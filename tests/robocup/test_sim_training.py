@@ -160,9 +160,15 @@ def test_players_a_server_routine_played_leave_the_policy_loss_too() -> None:
         "ppo.minibatch_size": 8, "env.episode_length": 8,
     })
     setup = learner.make_setup(config.learner, config.learner.make_env())
-    state = learner.init_state(setup, jax.random.key(0))
-    data = learner.collect(setup, state, jax.random.key(1))
+    # The mask reads the rollout's shapes and its scripted entries, not what was played: the
+    # rollout collect would return (traced, not compiled), filled with zeros.
+    shapes = jax.eval_shape(
+        lambda key: learner.collect(setup, learner.init_state(setup, key), key),
+        jax.random.key(0),
+    )
+    data = jax.tree.map(lambda leaf: jnp.zeros(leaf.shape, leaf.dtype), shapes)
     goalie_only = np.asarray(learner.policy_played(setup, data))
+    assert not goalie_only[:, 0].any() and goalie_only[:, 1].all()  # [games, players, T]
     scripted = np.zeros((8, 8), bool)  # [U = 4 games x 2 players, T]
     scripted[1, 2:5] = True  # game 0, player 1, steps 2-4: a set piece
     scripted[0, :] = True  # a goalie: already out

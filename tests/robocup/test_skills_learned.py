@@ -34,10 +34,11 @@ from tests.robocup.test_match import _fake_team, needs_proxy
 def _moving(players: int) -> tuple[Any, Any, Any]:
     """(env params, state, observation) of a skill game at step 7 with everyone moving, turned
     any way and having given a command (a reset then drawn velocities and command summaries:
-    no step, whose first calls compile op by op)."""
+    no step; the reset and the observation compiled, as eagerly each of their ops compiles
+    alone)."""
     env = SkillSoccer(players)
     p = env.default_params(episode_length=400)
-    start, _ = env.reset(jax.random.key(1), p)
+    start, _ = jax.jit(env.reset)(jax.random.key(1), p)
     k = jax.random.split(jax.random.key(2), 3)
     m = 2 * players
     current = start.replace(
@@ -46,7 +47,7 @@ def _moving(players: int) -> tuple[Any, Any, Any]:
         last_actions=jax.random.uniform(k[2], (m, 2), minval=-1.0, maxval=1.0),
         ball_velocity=jax.numpy.asarray([1.2, -0.7]), step=jax.numpy.asarray(7),
     )
-    return p, current, env.observe(current, p)
+    return p, current, jax.jit(env.observe)(current, p)
 
 
 # ------------------------------------------------------------------ the converter

@@ -273,7 +273,10 @@ def test_train_writes_episodes_checkpoints_and_resumes(tmp_path: Path) -> None:
     assert team.name
 
 
-@pytest.mark.parametrize("kind", ["self", "league"])
+# Self-play's opponent plays the server games as polyak's does (the default, in the episodes
+# test above: one network for every game); its copy of the learner is the learner's own,
+# tested in tests/train/test_opponents.py. --slow: a compile of its own.
+@pytest.mark.parametrize("kind", [pytest.param("self", marks=pytest.mark.slow), "league"])
 def test_every_opponent_kind_trains_in_the_server_loop(tmp_path: Path, kind: str) -> None:
     # The server loop improves through the learner's own opponent strategies: a league's
     # snapshots play their games one network per game, and its metrics are logged.
@@ -388,9 +391,11 @@ def test_ctrl_c_in_a_server_game_still_draws_the_learning_curve(tmp_path: Path) 
 def test_max_minutes_add_up_over_resumed_server_runs(tmp_path: Path) -> None:
     # run.max_minutes bounds the run's training time summed over its sessions, as in elevens
     # train: a resume starts from the time already spent, not from zero.
+    iteration_s = 2.4  # at least, from the sleeps of an iteration's 2 games x 12 steps
+
     class Slow(SimEnv):
         def step(self, actions: np.ndarray) -> Any:
-            time.sleep(0.25)  # an iteration (2 games x 12 steps) takes at least 6 s
+            time.sleep(iteration_s / 24)
             return super().step(actions)
 
     envs: list[Slow] = []
@@ -399,9 +404,9 @@ def test_max_minutes_add_up_over_resumed_server_runs(tmp_path: Path) -> None:
         envs.append(Slow(1))
         return envs[-1]
 
-    config = small_config(tmp_path, **{"run.iterations": 5, "run.max_minutes": 0.1})
+    config = small_config(tmp_path, **{"run.iterations": 5, "run.max_minutes": iteration_s / 60})
     first = train_robocup(config, env_factory=factory, progress=False)
-    assert first.iteration == 1 and first.out_of_time and first.train_seconds >= 6.0
+    assert first.iteration == 1 and first.out_of_time and first.train_seconds >= iteration_s
     # The same budget again: already spent, so not one more game is played.
     played = sum(len(env.actions_seen) for env in envs)
     again = train_robocup(config, resume=True, env_factory=factory, progress=False)
@@ -414,7 +419,8 @@ def test_max_minutes_add_up_over_resumed_server_runs(tmp_path: Path) -> None:
     assert last.iteration == 2 and last.out_of_time
     hours = read_metrics_csv(tmp_path / "run")["time/hours"]
     spent = dict(zip(hours.steps.tolist(), (hours.values * 3600.0).tolist(), strict=True))
-    assert spent[1] >= 6.0 and spent[2] >= spent[1] + 6.0  # the second counts from the first
+    # The second counts from the first.
+    assert spent[1] >= iteration_s and spent[2] >= spent[1] + iteration_s
     assert last.train_seconds >= spent[2] > budget * 60.0
 
 
@@ -568,22 +574,22 @@ def test_init_from_a_checkpoint_starts_from_its_networks_and_resumes_with_them(
 ) -> None:
     from elevens.runs.teams import load_learner_params
 
-    # A source with other networks than small_config's, written by hand (an init, no training).
-    networks = {**SMALL_NETWORKS, "network.features": 24}
-    source_config = make_config("2v2", **{"env.players_per_team": 1, **networks})
+    # A source with small_config's networks, written by hand (an init, no training): the run
+    # from it compiles what the tests above compiled.
+    source_config = make_config("2v2", **{"env.players_per_team": 1, **SMALL_NETWORKS})
     source_state = make_learner(
         source_config.learner, source_config.learner.make_env()
     ).init(jax.random.key(3))
     with Checkpointer(tmp_path / "source" / "checkpoints") as checkpointer:
         checkpointer.save(0, source_state, source_config.to_dict(), {"iteration": 0})
     # Its networks must be this run's: a clear refusal names the flags to pass.
-    with pytest.raises(RunRefusedError, match="other networks.*--network.features 24"):
-        train_robocup(small_config(tmp_path, **{"run.init_from": str(tmp_path / "source")}),
+    with pytest.raises(RunRefusedError, match="other networks.*--network.features 16"):
+        train_robocup(small_config(tmp_path, **{"run.init_from": str(tmp_path / "source"),
+                                                "network.features": 24}),
                       env_factory=lambda i: SimEnv(1), progress=False)
     # No time to play: the run saves its starting point, which must be the source's networks.
     target = small_config(
-        tmp_path, **{"run.init_from": str(tmp_path / "source"), "run.max_minutes": 1e-9,
-                     **networks}
+        tmp_path, **{"run.init_from": str(tmp_path / "source"), "run.max_minutes": 1e-9}
     )
     result = train_robocup(target, env_factory=lambda i: SimEnv(1), progress=False)
     assert result.iteration == 0
@@ -595,12 +601,12 @@ def test_init_from_a_checkpoint_starts_from_its_networks_and_resumes_with_them(
         load_learner_params(str(tmp_path / "run" / "nothing-here"))
     # A resume keeps the networks (a resume ignores init_from, as elevens train does).
     resumed = train_robocup(
-        small_config(tmp_path, **{"run.max_minutes": 1e-9, **networks}), resume=True,
+        small_config(tmp_path, **{"run.max_minutes": 1e-9}), resume=True,
         env_factory=lambda i: SimEnv(1), progress=False,
     )
     assert resumed.iteration == 0 and not resumed.interrupted
     saved = json.loads((tmp_path / "run" / "config.json").read_text())
-    assert saved["learner"]["network"]["features"] == 24
+    assert saved["learner"]["network"]["features"] == 16
     assert saved["learner"]["network"]["lstm_features"] == 8
 
 

@@ -31,8 +31,10 @@ from tests.teams.test_scripted import hand_state, jitted_act, reflect, reset_fn,
 
 IDS = [team.name for team in PANEL_TEAMS]
 GAMES = 64
-"""Games per pair in the match tests (11 v 11, sides swapped, seed 0). The 500-game figures
-are in docs/results/panel.md."""
+"""Games per pair in the match tests (11 v 11, sides swapped): two matches of 32 (keys 0 and
+1; against random only the first). The 500-game figures are in docs/results/panel.md."""
+MATCH_GAMES = 32
+OPPONENTS = ("random", "naive")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -53,17 +55,46 @@ class AnyOfPanel:
         return jax.lax.switch(params, branches, carry, obs, key)
 
 
+@dataclasses.dataclass(frozen=True)
+class RandomOrNaive:
+    """Plays random (index 0) or naive (1), as AnyOfPanel does the panel: both opponents in
+    the same compiled match. Random keeps no memory; naive's is the carry."""
+
+    random: TeamPolicy
+    naive: TeamPolicy
+    name: str = "random-or-naive"
+
+    def init_carry(self, players_per_team: int) -> BallMemory:
+        assert self.random.init_carry(players_per_team) == ()
+        return self.naive.init_carry(players_per_team)
+
+    def act(
+        self, params: jax.Array, carry: BallMemory, obs: Observation, key: jax.Array
+    ) -> tuple[BallMemory, jax.Array]:
+        def random(carry: BallMemory, obs: Observation, key: jax.Array) -> Any:
+            return carry, self.random.act(None, (), obs, key)[1]
+
+        return jax.lax.switch(
+            params, [random, functools.partial(self.naive.act, None)], carry, obs, key
+        )
+
+
 @functools.cache
 def outcomes_against(opponent: str, games: int) -> np.ndarray:
-    """f64[panel]: each panel team's mean outcome against ``opponent``, 11 v 11."""
+    """f64[panel]: each panel team's mean outcome against ``opponent``, 11 v 11, in matches
+    of MATCH_GAMES: one compile for every panel team and both opponents."""
     env, params = elevens.make("11v11")
+    away = RandomOrNaive(resolve_team("random", params), resolve_team("naive", params))
     means = []
     for index in range(len(PANEL_TEAMS)):
-        result = play_match(
-            env, params, AnyOfPanel(), resolve_team(opponent, params), jax.random.key(0),
-            games, home_params=jnp.int32(index),
-        )
-        means.append(float(np.mean(np.asarray(result.outcome))))
+        outcomes = [
+            np.asarray(play_match(
+                env, params, AnyOfPanel(), away, jax.random.key(match), MATCH_GAMES,
+                home_params=jnp.int32(index), away_params=jnp.int32(OPPONENTS.index(opponent)),
+            ).outcome)
+            for match in range(games // MATCH_GAMES)
+        ]
+        means.append(float(np.mean(np.concatenate(outcomes))))
     return np.asarray(means)
 
 
@@ -219,12 +250,20 @@ def test_naive_scores_at_most_0_6_against_every_panel_team() -> None:
 
 
 def test_the_switch_plays_each_team_as_itself() -> None:
-    # The panel measured through AnyOfPanel is the panel: each index acts as its team.
-    _, params, reset = reset_fn(5)
+    # The panel measured through AnyOfPanel is the panel: each index acts as its team. 11 a
+    # side, as the interface tests above, whose compiled acts the direct calls reuse.
+    _, params, reset = reset_fn(11)
     _, obs = reset(jax.random.key(12), params)
     switch = jax.jit(AnyOfPanel().act)
-    carry = BallMemory.empty(5)
+    carry = BallMemory.empty(11)
     for index, team in enumerate(PANEL_TEAMS):
         _, through = switch(jnp.int32(index), carry, obs.team(1), jax.random.key(2))
         _, direct = jitted_act(team)(None, carry, obs.team(1), jax.random.key(2))
+        np.testing.assert_allclose(np.asarray(through), np.asarray(direct), atol=1e-5)
+    # And the match tests' opponents through RandomOrNaive are random and naive.
+    away = RandomOrNaive(resolve_team("random", params), resolve_team("naive", params))
+    switch = jax.jit(away.act)
+    for index, team in enumerate((away.random, away.naive)):
+        _, through = switch(jnp.int32(index), carry, obs.team(1), jax.random.key(2))
+        _, direct = jitted_act(team)(None, team.init_carry(11), obs.team(1), jax.random.key(2))
         np.testing.assert_allclose(np.asarray(through), np.asarray(direct), atol=1e-5)

@@ -564,7 +564,7 @@ def test_server_naive_plays_random() -> None:
     results = play_robocup(
         "naive", "random", players_per_team=1, episodes=1, episode_length=60,
         action="thesis12", rcssserver=os.environ.get("ELEVENS_RCSSSERVER"),
-        progress=False,
+        print_fn=lambda _: None,
     )
     assert results[0].steps == 60 and results[0].restarts == 0
 

@@ -332,22 +332,15 @@ class DecisionServer:
 
     def _decide_alone(self, state: Any, arrived: float) -> Any:
         """A :func:`rowwise` decide of one request, in its connection's thread."""
-        failed = False
-        try:
-            answers = list(self.decide([state]))
-            if len(answers) != 1:
-                raise ValueError(f"decide answered {len(answers)} of 1 request")
-            answer = answers[0]
-        except Exception:
-            _log.exception("decide failed; the request gets the default actions")
-            answer, failed = default_actions(state), True
+        answers = self._call([state])
+        failed = answers is None
+        answer = default_actions(state) if answers is None else answers[0]
         done = time.perf_counter()
         with self._lock:
             self._batches += 1
             self._batch_sizes += 1
             self._decide_s.append(done - arrived)
             self._latency.append(done - arrived)
-            self._errors += failed
             self._defaults += failed
         if failed:
             self._defaulted(state)
@@ -387,15 +380,9 @@ class DecisionServer:
 
     def _run(self, batch: list[_Request]) -> None:
         start = time.perf_counter()
-        try:
-            answers = list(self.decide([r.state for r in batch]))
-            if len(answers) != len(batch):
-                raise ValueError(f"decide answered {len(answers)} of {len(batch)} requests")
-        except Exception:
-            _log.exception("decide failed; the batch gets the default actions")
+        answers = self._call([r.state for r in batch])
+        if answers is None:
             answers = [None] * len(batch)
-            with self._lock:
-                self._errors += 1
         elapsed = time.perf_counter() - start
         with self._lock:
             self._batches += 1
@@ -410,6 +397,20 @@ class DecisionServer:
                     self._defaulted(r.state)
                 r.answer = answer
                 r.done.set()
+
+    def _call(self, states: list[Any]) -> list[Any] | None:
+        """``decide`` over ``states``; None (logged, counted as an error) when it raises or
+        answers another number of requests: its requests then get the default actions."""
+        try:
+            answers = list(self.decide(states))
+            if len(answers) != len(states):
+                raise ValueError(f"decide answered {len(answers)} of {len(states)} requests")
+            return answers
+        except Exception:
+            _log.exception("decide failed; its requests get the default actions")
+            with self._lock:
+                self._errors += 1
+            return None
 
     def _defaulted(self, state: Any) -> None:
         if self.on_default is not None:

@@ -41,6 +41,7 @@ from __future__ import annotations
 import dataclasses
 import enum
 import json
+import logging
 import os
 import shutil
 import sys
@@ -105,6 +106,26 @@ def _quiet_stray_loop_errors() -> None:
 
     hook.drops_closed_loop_errors = True  # type: ignore[attr-defined]
     sys.unraisablehook = hook
+
+
+class _DropFailedReads(logging.Filter):
+    """Drops asyncio's "Task (Future) exception was never retrieved" for one damaged checkpoint.
+
+    The other reads of a failed restore fail too; their tasks are never awaited, so asyncio logs
+    each one (a traceback) when it is garbage-collected, possibly at exit, after the one line that
+    names the damage. Only tasks whose error names the damaged directory are dropped."""
+
+    def __init__(self, directory: Path) -> None:
+        super().__init__()
+        self._names = {os.fspath(directory), os.fspath(Path(directory).absolute())}
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        error = record.exc_info[1] if record.exc_info else None
+        return not (
+            str(record.msg).startswith(("Task exception", "Future exception"))
+            and error is not None
+            and any(name in str(error) for name in self._names)
+        )
 
 
 # --------------------------------------------------------------------------------------------
@@ -504,6 +525,7 @@ class Checkpointer:
         except CheckpointError:
             raise
         except Exception as error:  # tensorstore/Orbax raise ValueError, OSError, ... for damage
+            logging.getLogger("asyncio").addFilter(_DropFailedReads(step_dir))
             raise CheckpointError(
                 f"corrupt checkpoint {step_dir}: cannot read it: {type(error).__name__}: {error}"
             ) from error

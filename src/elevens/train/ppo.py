@@ -417,8 +417,7 @@ def ppo_loss(
     policy_mask: ArrayLike | None = None,
     hyperparams: PPOHyperparams | None = None,
     teacher_log_prob: ArrayLike | None = None,
-    teacher_weight: ArrayLike = 0.0,
-    teacher_mask: ArrayLike | None = None,
+    teacher_weight: ArrayLike = 0.0, teacher_mask: ArrayLike | None = None,
 ) -> PPOLoss:
     """The PPO loss of eq. 3.59 / Algorithm 4 line 21 (negated into a minimisation).
 
@@ -437,10 +436,9 @@ def ppo_loss(
             where a scripted routine played instead (a game's ``scripted_players``), the entry
             counts in the value loss only, not in the policy, entropy or advantage terms.
         hyperparams: weights, clip and switches; ``PPOHyperparams()`` when None.
-        teacher_log_prob: optional ``f32[...]`` log pi(teacher's action) under the params being
-            optimised (``teacher_log_prob``); its mean over the entries the policy played (and
-            ``teacher_mask``'s) enters the loss weighted by ``teacher_weight`` (``f32[]``, may
-            be traced).
+        teacher_log_prob: optional ``f32[...]`` log pi(teacher's action) (``teacher_terms``): its
+            mean where the policy played and ``teacher_mask`` holds, times ``teacher_weight``
+            (``f32[]``, may be traced), is subtracted.
 
     Advantage normalisation (``hyperparams.normalize_advantages``) happens here, so it is per
     minibatch: call this inside the minibatch loss.
@@ -474,11 +472,7 @@ def ppo_loss(
     )
     taught = None
     if teacher_log_prob is not None:
-        where = acted
-        if teacher_mask is not None:
-            where = jnp.asarray(teacher_mask, bool)
-            where = where if acted is None else where & jnp.asarray(acted, bool)
-        taught = _masked_mean(jnp.asarray(teacher_log_prob, jnp.float32), where)
+        taught = _masked_mean(jnp.asarray(teacher_log_prob), _both(teacher_mask, acted))
         total = total - jnp.asarray(teacher_weight, jnp.float32) * taught
     return PPOLoss(
         total=total,
@@ -490,6 +484,15 @@ def ppo_loss(
         advantage_mean=advantage_mean,
         teacher_log_prob=None if taught is None else jax.lax.stop_gradient(taught),
     )
+
+
+def _both(first: ArrayLike | None, second: ArrayLike | None) -> jax.Array | None:
+    """The entries True in both masks (a missing mask is all True)."""
+    if first is None or second is None:
+        return None if first is None and second is None else jnp.asarray(
+            second if first is None else first, bool
+        )
+    return jnp.asarray(first, bool) & jnp.asarray(second, bool)
 
 
 TEACHER_ACTION_LIMIT = 0.99
@@ -628,10 +631,7 @@ def sequence_loss(
     if terms is None:
         return loss.total, loss
     # The teacher's diagnostics, where its action counts (as in the loss).
-    where = terms.mask
-    if batch.policy_mask is not None:
-        played = sequences(batch.policy_mask)
-        where = played if where is None else where & played
+    where = _both(terms.mask, None if batch.policy_mask is None else sequences(batch.policy_mask))
     return loss.total, loss._replace(
         teacher_agreement=None if terms.agreement is None
         else _masked_mean(terms.agreement, where),

@@ -189,9 +189,8 @@ def rollout(
             G - (their games) games are self-play, and ``opponent_params`` (per game: leading
             [G_self]) play those. The learner plays both sides in every block.
         noisy: the players see with ``params.observation_noise`` (static; ``unroll``).
-        teacher: a team that acts as the learner's players on their observations in every game
-            (``play.TaughtActor``); its actions go to ``Transition.teacher_action``. None: none
-            (nothing is computed).
+        teacher: a team acting as the learner's players on their observations in every game
+            (``play.TaughtActor``), into ``Transition.teacher_action``; None: nothing is computed.
 
     Both teams sample their actions from their tanh Gaussians. Jit this (or call it inside a jit)
     with ``env``, ``policy``, ``num_games`` and ``opponent_per_game`` static.
@@ -223,13 +222,8 @@ def rollout(
     keys = jax.random.split(play_key, (num_steps, 2 + num_games))
     step_keys = StepKeys(home=keys[:, 0], away=keys[:, 1], env=keys[:, 2:])
     learner = NetworkActor(policy, learner_params)
-    home: Actor = learner
-    if teacher is not None:
-        # The learner plays every game, on each game's field when the games are drawn.
-        home = TaughtActor(learner, PolicyActor(teacher.policy, teacher.params,
-                                                None if axis is None else params))
     final, history = unroll(
-        env, params, home, opponent, states, side, step_keys,
+        env, params, _taught(learner, teacher, params), opponent, states, side, step_keys,
         functools.partial(_learner_record, env, params), constrain_games, noisy,
     )
     score = final.state.score  # i32[G, 2] by side
@@ -237,6 +231,15 @@ def rollout(
     goals_against = jnp.where(side == 0, score[:, 1], score[:, 0])
     initial_carry = learner.init_carry(num_games, n)
     return collected(history, goals_for, goals_against, side, initial_carry, n)
+
+
+def _taught(learner: NetworkActor, teacher: Teacher | None, params: EnvParams) -> Actor:
+    """The learner, with ``teacher`` beside it in every game (on each game's field when the
+    games are drawn); the learner alone without one."""
+    if teacher is None:
+        return learner
+    game_params = None if game_axis(params) is None else params
+    return TaughtActor(learner, PolicyActor(teacher.policy, teacher.params, game_params))
 
 
 def _learner_record(env: Soccer, params: EnvParams, view: StepView) -> StepRecord:

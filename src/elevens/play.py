@@ -62,6 +62,8 @@ class NetworkSample(struct.PyTreeNode):
     pre_tanh: jax.Array  # f32[G, n, A] the raw samples: the Gaussian's u, the actions tanh(u)
     #                      (the parametrised head: (kind, pointer, u_x, u_y))
     log_prob: jax.Array  # f32[G, n] log pi(action) under the acting params (exact, from u)
+    teacher_action: jax.Array | None = None  # f32[G, n, A] a ``TaughtActor``'s teacher's action
+    #                                           on the same observation; None: no teacher
 
 
 @dataclasses.dataclass(frozen=True)
@@ -125,6 +127,34 @@ class PolicyActor:
 
         carry, actions = jax.vmap(act_on)(self.game_params, carry, obs, keys)
         return carry, actions, None
+
+
+@dataclasses.dataclass(frozen=True)
+class TaughtActor:
+    """The network, with a fixed team (``teacher``) acting beside it on the same observations:
+    the network's actions are played, the teacher's are only recorded in the extras
+    (``NetworkSample.teacher_action``, the game's action format). The teacher gets
+    ``fold_in(key, 1)`` of the step's key, so the network's draws are those of an unrolled
+    ``NetworkActor``."""
+
+    network: NetworkActor
+    teacher: Actor
+
+    def init_carry(self, num_games: int, players_per_team: int) -> Carry:
+        return (
+            self.network.init_carry(num_games, players_per_team),
+            self.teacher.init_carry(num_games, players_per_team),
+        )
+
+    def act(
+        self, carry: Carry, obs: Observation, reset: jax.Array, key: jax.Array
+    ) -> tuple[Carry, jax.Array, NetworkSample]:
+        memory, actions, sample = self.network.act(carry[0], obs, reset, key)
+        taught, teacher_actions, _ = self.teacher.act(
+            carry[1], obs, reset, jax.random.fold_in(key, 1)
+        )
+        sample = sample.replace(teacher_action=jnp.asarray(teacher_actions, jnp.float32))
+        return (memory, taught), actions, sample
 
 
 @dataclasses.dataclass(frozen=True)

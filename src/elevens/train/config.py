@@ -166,6 +166,7 @@ _SILENT_DEFAULTS = (
     "learner.env.stamina", "learner.env.goalie", "learner.env.game.possession_shaping_weight",
     "learner.env.game.possession_radius", "learner.env.game.possession_by",
     "learner.env.game.observation_noise", "learner.env.randomize",
+    "learner.ppo.teacher", "learner.ppo.teacher_weight", "learner.ppo.teacher_iterations",
 )
 
 
@@ -796,6 +797,18 @@ def _check_ppo_extras(fields: Mapping[str, Any]) -> None:
             _is_number(value) and math.isfinite(value) and value >= 0,
             f"ppo.{name}={value!r} is invalid: it must be a finite number >= 0",
         )
+    teacher = fields.get("teacher", "")
+    _require(
+        isinstance(teacher, str) and teacher == teacher.strip(),
+        f"ppo.teacher={teacher!r} is invalid: it must be a team spec (e.g. 'naive', a shipped "
+        "team or runs/NAME), without spaces around it, or '' for none",
+    )
+    weight = fields.get("teacher_weight", 0.0)
+    _require(
+        _is_number(weight) and math.isfinite(weight) and weight >= 0,
+        f"ppo.teacher_weight={weight!r} is invalid: it must be a finite number >= 0",
+    )
+    _int_at_least("ppo.teacher_iterations", fields.get("teacher_iterations", 0), 0)
 
 
 def validate(config: TrainConfig) -> None:
@@ -1070,6 +1083,15 @@ def _validate_ppo(learner: LearnerConfig) -> None:
             f"multiple of {n} that divides the batch of {units}, e.g. "
             f"{', '.join(str(m) for m in sorted(near))}"
         )
+
+
+    if ppo.teacher:
+        _require(
+            ppo.teacher != SELF,
+            f"ppo.teacher={ppo.teacher!r} is invalid: the teacher is a fixed team (a team spec, "
+            "e.g. 'naive'), not self-play",
+        )
+        _check_team_actions("ppo.teacher", (ppo.teacher,), learner)
 
 
 def _validate_opponent(opponent: OpponentConfig) -> None:

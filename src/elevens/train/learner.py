@@ -60,7 +60,7 @@ from elevens.train.config import (
     validate_training,
 )
 from elevens.train.opponents import OpponentState, OpponentStrategy
-from elevens.train.rollout import FixedOpponent, Rollout, rollout
+from elevens.train.rollout import FixedOpponent, Rollout, Teacher, rollout
 from elevens.train.shaping import (
     ShapingState,
     shaping_init,
@@ -125,6 +125,8 @@ class Setup:
     """The game, the caller's (``make_learner``)."""
     noisy: bool
     """The players see with noise (``Randomize.noisy``): the unroll draws it."""
+    teacher: Teacher | None = None
+    """The team of ``ppo.teacher`` (None: none, or a setup built without ``load_team``)."""
 
     @property
     def players(self) -> int:
@@ -186,6 +188,7 @@ def collect(setup: Setup, state: TrainState, rollout_key: jax.Array) -> Rollout:
         constrain_games=setup.shard_games,
         fixed_opponents=setup.fixed_opponents,
         noisy=setup.noisy,
+        teacher=setup.teacher,
     )
 
 
@@ -195,7 +198,11 @@ def improve(
 ) -> tuple[TrainState, Metrics]:
     """2-5: advantages, the PPO epochs, the opponent and the shaping schedule after a rollout
     (``state.key`` is the run's key for the next iteration)."""
-    learned = learn(setup, state.params, state.opt_state, data, shuffle_key)
+    # The teacher's weight follows the completed iterations: a traced value, no recompile.
+    weight = None if setup.teacher is None else setup.config.ppo.teacher_weight_at(
+        state.iteration
+    )
+    learned = learn(setup, state.params, state.opt_state, data, shuffle_key, weight)
     new_params = learned.update.params
     outcomes = opp.game_outcome(data.goals_for, data.goals_against)  # f32[G]
     # The fixed teams' games (the last ones) tell nothing about the opponent.
@@ -215,6 +222,8 @@ def improve(
         env_steps=state.env_steps + jnp.asarray(steps_played, jnp.uint32),
     )
     metrics = iteration_metrics(setup, data, learned, outcomes, opponent, state.shaping, shaping)
+    if weight is not None:
+        metrics["train/teacher_weight"] = weight
     return new_state, metrics
 
 
@@ -236,9 +245,11 @@ def advantages(
 
 def learn(
     setup: Setup, params: LearnerParams, opt_state: optax.OptState, data: Rollout,
-    shuffle_key: jax.Array,
+    shuffle_key: jax.Array, teacher_weight: jax.Array | None = None,
 ) -> Learned:
-    """2-3. Algorithm 4 lines 12-24: advantages, then the PPO epochs over the sequences."""
+    """2-3. Algorithm 4 lines 12-24: advantages, then the PPO epochs over the sequences;
+    ``teacher_weight`` f32[]: w of the teacher loss, where ``data`` has the teacher's actions
+    (``ppo.teacher``)."""
     hp, n = setup.config.ppo, setup.players
     # The critic once per game (its input is the same for the n players of a game).
     game_values: Any = setup.critic.apply(params.critic, data.game_global_state)  # f32[G, T]
@@ -249,7 +260,9 @@ def learn(
         shuffle_key, noise_key = jax.random.split(shuffle_key)
         pre_tanh = data.transitions.pre_tanh
         entropy_noise = jax.random.normal(noise_key, pre_tanh.shape, pre_tanh.dtype)
-    batch = update_batch(setup, data, values, returns, gae_advantages, entropy_noise)
+    batch = update_batch(
+        setup, data, values, returns, gae_advantages, entropy_noise, teacher_weight
+    )
     update = ppo.update_epochs(
         functools.partial(ppo.sequence_loss, setup.policy, setup.critic, hp),
         setup.optimizer,
@@ -268,6 +281,7 @@ def learn(
 def update_batch(
     setup: Setup, data: Rollout, values: jax.Array, returns: jax.Array,
     gae_advantages: jax.Array | None, entropy_noise: jax.Array | None,
+    teacher_weight: jax.Array | None = None,
 ) -> ppo.UpdateBatch:
     """The rollout's [U, T] player sequences as [G, n, T] (games outermost: a free reshape)."""
     t, n = data.transitions, setup.players
@@ -289,6 +303,13 @@ def update_batch(
         entropy_noise=maybe(entropy_noise),
         policy_mask=policy_played(setup, data),
     )
+    if t.teacher_action is not None:
+        if teacher_weight is None:
+            raise ValueError("the rollout has the teacher's actions: pass teacher_weight")
+        batch = batch.replace(
+            teacher_action=by_game(t.teacher_action),
+            teacher_weight=jnp.full((setup.games,), teacher_weight, jnp.float32),
+        )
     return setup.shard_games(batch)
 
 
@@ -351,6 +372,13 @@ def iteration_metrics(
         # Share of teammate and opponent slots in view: above the largest capacity of
         # nets.capacity, the update's policy pass runs dense (slower, same result).
         "train/visible_share": jnp.mean(t.obs.entity_mask[..., :-1].astype(jnp.float32)),
+        # With ppo.teacher: its action's mean log pi under the params being updated, and how
+        # close the policy is to it (the parametrised head's kind, the Gaussian's action).
+        **{
+            f"train/{name}": value
+            for name in ("teacher_log_prob", "teacher_agreement", "teacher_action_error")
+            if (value := getattr(loss, name)) is not None
+        },
         "env/goal_reward": jnp.mean(data.goal_reward),
         "env/ball_shaping": jnp.mean(data.ball_shaping),
         "env/approach_shaping": jnp.mean(data.approach_shaping),
@@ -485,6 +513,17 @@ def make_learner(
     """
     validate_training(config)
     _check_game(config, env, external_games)
+    if config.ppo.teacher and external_games:
+        raise ValueError(
+            f"ppo.teacher={config.ppo.teacher!r} is invalid when the games are played outside "
+            "the simulator: the teacher acts beside the learner in the compiled unroll; leave "
+            "it out"
+        )
+    if load_team is None and config.ppo.teacher:
+        raise ValueError(
+            f"ppo.teacher={config.ppo.teacher!r} names a team: pass load_team "
+            "(elevens.runs.teams.team_on_field) to make_learner, or train with elevens.runs.train"
+        )
     if load_team is None and len(opponent_mix(config)) > 1:
         raise ValueError(
             f"opponent.mix={config.opponent.mix!r} names fixed teams: pass load_team "
@@ -561,6 +600,10 @@ def make_setup(
     fixed = (
         _fixed_opponents(mix[1:], n, env.actions, env_params, load_team) if load_team else ()
     )
+    teacher = (
+        _teacher(hp.teacher, n, env.actions, env_params, load_team)
+        if hp.teacher and load_team else None
+    )
     policy, critic = config.network.policy(), config.network.critic()
     value_and_grad = capacity.value_and_grad(
         functools.partial(ppo.sequence_loss, policy, critic, hp),
@@ -581,6 +624,7 @@ def make_setup(
         env_params=env_params,
         env=env,
         noisy=config.env.randomize.noisy(env_params),
+        teacher=teacher,
     )
 
 
@@ -656,6 +700,18 @@ def _fixed_opponents(
             raise ValueError(f"opponent.mix team {spec!r}: {error}") from error
         fixed.append(FixedOpponent(policy=team.policy, params=team.params, games=games))
     return tuple(fixed)
+
+
+def _teacher(
+    spec: str, players_per_team: int, actions: int, env_params: EnvParams, load_team: TeamLoader,
+) -> Teacher:
+    """The team of ``ppo.teacher``, loaded once per learner and checked against the game."""
+    team = load_team(spec, env_params, "ppo.teacher")
+    try:
+        team.check_size(players_per_team, actions)
+    except ValueError as error:
+        raise ValueError(f"ppo.teacher team {spec!r}: {error}") from error
+    return Teacher(policy=team.policy, params=team.params)
 
 
 def _mix_blocks(mix: list[tuple[str, int]]) -> tuple[tuple[str, int, int], ...]:

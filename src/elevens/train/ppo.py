@@ -91,6 +91,24 @@ class PPOHyperparams:
     value_clip_epsilon: float = 0.1
     """Width of the value clip when ``clip_value`` is on; not in the thesis, set to epsilon_p as
     CleanRL ties the two."""
+    teacher: str = ""
+    """A fixed team (a team spec, as ``opponent.mix``'s teams: 'naive', a shipped or trained
+    team) that acts beside the learner on the learner's own observations at every step; the
+    loss then pulls the policy towards its actions (kickstarting, Schmitt et al. 2018):
+    ``- w * mean(log pi(teacher's action))``. '': no teacher."""
+    teacher_weight: float = 1.0
+    """w at iteration 0 (with ``teacher``)."""
+    teacher_iterations: int = 0
+    """w falls linearly from ``teacher_weight`` to 0 over this many iterations, then PPO alone
+    trains; 0: w stays ``teacher_weight``."""
+
+    def teacher_weight_at(self, iteration: jax.Array) -> jax.Array:
+        """f32[]: the teacher's weight w after ``iteration`` i32[] completed iterations (traced:
+        the schedule is no recompile)."""
+        if self.teacher_iterations == 0:
+            return jnp.asarray(self.teacher_weight, jnp.float32)
+        done = jnp.asarray(iteration, jnp.float32) / self.teacher_iterations
+        return self.teacher_weight * jnp.maximum(1.0 - done, 0.0)
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.gamma <= 1.0:
@@ -365,7 +383,8 @@ class PPOLoss(NamedTuple):
     """Output of ``ppo_loss``; all scalars ``f32[]``. ``total`` is what gets differentiated."""
 
     total: jax.Array
-    """policy_weight * policy + value_weight * value - entropy_weight * entropy."""
+    """policy_weight * policy + value_weight * value - entropy_weight * entropy
+    (- teacher_weight * teacher_log_prob with a teacher)."""
     policy: jax.Array
     """The clipped-surrogate loss (``PolicyLoss.loss``)."""
     value: jax.Array
@@ -376,6 +395,13 @@ class PPOLoss(NamedTuple):
     clip_fraction: jax.Array
     advantage_mean: jax.Array
     """Mean advantage before normalisation (a sanity signal: near 0 when the critic is right)."""
+    teacher_log_prob: jax.Array | None = None
+    """With a teacher: mean log pi(teacher's action) over the entries the policy played."""
+    teacher_agreement: jax.Array | None = None
+    """With a teacher and the parametrised head: the share of those entries whose likeliest
+    kind is the teacher's kind."""
+    teacher_action_error: jax.Array | None = None
+    """With a teacher and the Gaussian head: mean |tanh(mean) - teacher's action| there."""
 
 
 def ppo_loss(
@@ -390,6 +416,8 @@ def ppo_loss(
     mask: ArrayLike | None = None,
     policy_mask: ArrayLike | None = None,
     hyperparams: PPOHyperparams | None = None,
+    teacher_log_prob: ArrayLike | None = None,
+    teacher_weight: ArrayLike = 0.0, teacher_mask: ArrayLike | None = None,
 ) -> PPOLoss:
     """The PPO loss of eq. 3.59 / Algorithm 4 line 21 (negated into a minimisation).
 
@@ -408,6 +436,9 @@ def ppo_loss(
             where a scripted routine played instead (a game's ``scripted_players``), the entry
             counts in the value loss only, not in the policy, entropy or advantage terms.
         hyperparams: weights, clip and switches; ``PPOHyperparams()`` when None.
+        teacher_log_prob: optional ``f32[...]`` log pi(teacher's action) (``teacher_terms``): its
+            mean where the policy played and ``teacher_mask`` holds, times ``teacher_weight``
+            (``f32[]``, may be traced), is subtracted.
 
     Advantage normalisation (``hyperparams.normalize_advantages``) happens here, so it is per
     minibatch: call this inside the minibatch loss.
@@ -439,6 +470,10 @@ def ppo_loss(
         + hp.value_weight * value
         - hp.entropy_weight * entropy_mean
     )
+    taught = None
+    if teacher_log_prob is not None:
+        taught = _masked_mean(jnp.asarray(teacher_log_prob), _both(teacher_mask, acted))
+        total = total - jnp.asarray(teacher_weight, jnp.float32) * taught
     return PPOLoss(
         total=total,
         policy=policy.loss,
@@ -447,6 +482,72 @@ def ppo_loss(
         approx_kl=policy.approx_kl,
         clip_fraction=policy.clip_fraction,
         advantage_mean=advantage_mean,
+        teacher_log_prob=None if taught is None else jax.lax.stop_gradient(taught),
+    )
+
+
+def _both(first: ArrayLike | None, second: ArrayLike | None) -> jax.Array | None:
+    """The entries True in both masks (a missing mask is all True)."""
+    if first is None or second is None:
+        return None if first is None and second is None else jnp.asarray(
+            second if first is None else first, bool
+        )
+    return jnp.asarray(first, bool) & jnp.asarray(second, bool)
+
+
+TEACHER_ACTION_LIMIT = 0.99
+"""The teacher's continuous action values are clipped to +-0.99 before ``atanh`` (u = +-2.65):
+a scripted team plays +-1 often (full speed), whose pre-tanh value is +-inf, and even
+``ACTION_EPS``'s +-7.25 would drive the policy's means far into the saturated tanh for an
+action that 0.99 already plays almost alike."""
+
+
+class TeacherTerms(NamedTuple):
+    """Output of ``teacher_terms``, each ``f32[...]`` per entry."""
+
+    log_prob: jax.Array
+    """log pi(teacher's action), differentiable in the distribution's params."""
+    mask: jax.Array | None
+    """bool[...] where the teacher's action counts: False where the parametrised head's teacher
+    points at no slot in the policy's view (probability 0: log pi would be -1e9)."""
+    agreement: jax.Array | None
+    """Parametrised head: 1 where the policy's likeliest kind is the teacher's."""
+    action_error: jax.Array | None
+    """Gaussian head: mean |tanh(mean) - teacher's action| over the action values."""
+
+
+def teacher_terms(distribution: Any, action: jax.Array) -> TeacherTerms:
+    """The policy's ``distribution`` (``TanhGaussian`` or ``ParametrisedDistribution``, leading
+    [...]) scored on a teacher's ``action`` f32[..., A], the game's action format (the format of
+    the policy's own sampled action), continuous values clipped to ``TEACHER_ACTION_LIMIT``."""
+    from elevens.nets.distributions import ParametrisedDistribution
+
+    action = jax.lax.stop_gradient(jnp.asarray(action, jnp.float32))
+    limit = TEACHER_ACTION_LIMIT
+    if isinstance(distribution, ParametrisedDistribution):
+        clipped = jnp.concatenate(
+            [action[..., :2], jnp.clip(action[..., 2:], -limit, limit)], axis=-1
+        )
+        slots = jnp.arange(distribution.pointer_mask.shape[-1])
+        pointer = action[..., 1].astype(jnp.int32)[..., None]
+        seen = jnp.any(distribution.pointer_mask & (slots == pointer), axis=-1)
+        mask = seen | ~jnp.any(distribution.pointer_mask, axis=-1)
+        kinds = distribution.kind_logits.shape[-1]
+        kind = jnp.clip(action[..., 0].astype(jnp.int32), 0, kinds - 1)
+        likeliest = jnp.argmax(jax.lax.stop_gradient(distribution.kind_logits), axis=-1)
+        return TeacherTerms(
+            log_prob=distribution.log_prob_of_action(clipped),
+            mask=mask,
+            agreement=(likeliest == kind).astype(jnp.float32),
+            action_error=None,
+        )
+    clipped = jnp.clip(action, -limit, limit)
+    mode = jax.lax.stop_gradient(distribution.mode())
+    return TeacherTerms(
+        log_prob=distribution.log_prob_of_action(clipped),
+        mask=None,
+        agreement=None,
+        action_error=jnp.mean(jnp.abs(mode - clipped), axis=-1),
     )
 
 
@@ -466,6 +567,9 @@ class UpdateBatch(struct.PyTreeNode):
     old_values: jax.Array | None  # f32[G, n, T] rollout-time values, only for value clipping
     entropy_noise: jax.Array | None = None  # f32[G, n, T, A] only for the squashed entropy
     policy_mask: jax.Array | None = None  # bool[G, n, T] False where a routine played (ppo_loss)
+    teacher_action: jax.Array | None = None  # f32[G, n, T, A] the teacher's (ppo.teacher)
+    teacher_weight: jax.Array | None = None  # f32[G] w this iteration, the same in every game
+    #                                          (a leaf with the game axis, so it is shuffled)
 
 
 def sequence_loss(
@@ -499,6 +603,15 @@ def sequence_loss(
     distribution = unrolled[1].distribution()
     game_values: Any = critic.apply(params.critic, batch.global_state)
     values = jnp.repeat(game_values, n, axis=0)
+    terms, taught = None, dict[str, Any]()
+    if batch.teacher_action is not None:
+        assert batch.teacher_weight is not None
+        terms = teacher_terms(distribution, sequences(batch.teacher_action))
+        taught = {
+            "teacher_log_prob": terms.log_prob,
+            "teacher_weight": batch.teacher_weight[0],
+            "teacher_mask": terms.mask,
+        }
     loss = ppo_loss(
         distribution.log_prob(sequences(batch.pre_tanh)),
         sequences(batch.log_prob),
@@ -513,8 +626,18 @@ def sequence_loss(
         old_values=None if batch.old_values is None else sequences(batch.old_values),
         policy_mask=None if batch.policy_mask is None else sequences(batch.policy_mask),
         hyperparams=hp,
+        **taught,
     )
-    return loss.total, loss
+    if terms is None:
+        return loss.total, loss
+    # The teacher's diagnostics, where its action counts (as in the loss).
+    where = _both(terms.mask, None if batch.policy_mask is None else sequences(batch.policy_mask))
+    return loss.total, loss._replace(
+        teacher_agreement=None if terms.agreement is None
+        else _masked_mean(terms.agreement, where),
+        teacher_action_error=None if terms.action_error is None
+        else _masked_mean(terms.action_error, where),
+    )
 
 
 def explained_variance(

@@ -40,6 +40,7 @@ from elevens.play import (
     PolicyActor,
     StepKeys,
     StepView,
+    TaughtActor,
     home_sides_in_blocks,
     pick_side,
     unroll,
@@ -72,6 +73,8 @@ class Transition:
     truncated: jax.Array  # bool[U, T] True where that end is the time limit (every end here)
     reset: jax.Array  # bool[U, T] True at the first step of an episode: the LSTM memory is zeroed
     initial_carry: PolicyCarry  # leaves f32[U, lstm_features]: the memory before step 0
+    teacher_action: jax.Array | None = None  # f32[U, T, A] what the teacher (ppo.teacher) did
+    #                                           on the same observation; None: no teacher
 
 
 @struct.dataclass
@@ -123,6 +126,18 @@ class StepRecord(struct.PyTreeNode):
     possession_shaping: jax.Array  # f32[G, n]
     holder: jax.Array  # f32[G]
     scripted: jax.Array | None = None  # bool[G, n] a routine played (the server's); None: never
+    teacher_action: jax.Array | None = None  # f32[G, n, A] the teacher's; None: no teacher
+
+
+@dataclasses.dataclass(frozen=True)
+class Teacher:
+    """A fixed team that acts beside the learner on its observations, its actions recorded for
+    the teacher loss (``ppo.teacher``): a handcrafted team or a frozen network behind
+    ``TeamPolicy``."""
+
+    policy: TeamPolicy
+    params: Any
+    """The policy's params (None for the handcrafted teams); constants of the compiled rollout."""
 
 
 def _to_units(leaf: jax.Array, n: int) -> jax.Array:
@@ -150,6 +165,7 @@ def rollout(
     constrain_games: Callable[[Any], Any] = lambda tree: tree,
     fixed_opponents: tuple[FixedOpponent, ...] = (),
     noisy: bool = False,
+    teacher: Teacher | None = None,
 ) -> Rollout:
     """Play ``num_games`` whole episodes of ``num_steps`` steps, learner against opponent.
 
@@ -173,6 +189,8 @@ def rollout(
             G - (their games) games are self-play, and ``opponent_params`` (per game: leading
             [G_self]) play those. The learner plays both sides in every block.
         noisy: the players see with ``params.observation_noise`` (static; ``unroll``).
+        teacher: a team acting as the learner's players on their observations in every game
+            (``play.TaughtActor``), into ``Transition.teacher_action``; None: nothing is computed.
 
     Both teams sample their actions from their tanh Gaussians. Jit this (or call it inside a jit)
     with ``env``, ``policy``, ``num_games`` and ``opponent_per_game`` static.
@@ -205,7 +223,7 @@ def rollout(
     step_keys = StepKeys(home=keys[:, 0], away=keys[:, 1], env=keys[:, 2:])
     learner = NetworkActor(policy, learner_params)
     final, history = unroll(
-        env, params, learner, opponent, states, side, step_keys,
+        env, params, _taught(learner, teacher, params), opponent, states, side, step_keys,
         functools.partial(_learner_record, env, params), constrain_games, noisy,
     )
     score = final.state.score  # i32[G, 2] by side
@@ -213,6 +231,15 @@ def rollout(
     goals_against = jnp.where(side == 0, score[:, 1], score[:, 0])
     initial_carry = learner.init_carry(num_games, n)
     return collected(history, goals_for, goals_against, side, initial_carry, n)
+
+
+def _taught(learner: NetworkActor, teacher: Teacher | None, params: EnvParams) -> Actor:
+    """The learner, with ``teacher`` beside it in every game (on each game's field when the
+    games are drawn); the learner alone without one."""
+    if teacher is None:
+        return learner
+    game_params = None if game_axis(params) is None else params
+    return TaughtActor(learner, PolicyActor(teacher.policy, teacher.params, game_params))
 
 
 def _learner_record(env: Soccer, params: EnvParams, view: StepView) -> StepRecord:
@@ -233,6 +260,7 @@ def _learner_record(env: Soccer, params: EnvParams, view: StepView) -> StepRecor
         approach_shaping=pick_side(view.info.approach_shaping, side),
         possession_shaping=pick_side(view.info.possession_shaping, side),
         holder=pick_side(view.info.holder, side),
+        teacher_action=view.home_extras.teacher_action,
     )
 
 
@@ -260,6 +288,8 @@ def collected(
         initial_carry=jax.tree.map(
             lambda leaf: leaf.reshape(num_games * n, *leaf.shape[2:]), initial_carry
         ),
+        teacher_action=None if history.teacher_action is None
+        else per_player(history.teacher_action),
     )
     scripted = None if history.scripted is None else per_player(history.scripted)
     return Rollout(

@@ -17,7 +17,7 @@ from elevens.train.config import TrainConfig, make_config
 from elevens.train.learner import make_learner
 from elevens.train.ppo import PPOHyperparams
 from tests.refusal import refused
-from tests.train.test_trainer import leaves_equal, tiny_config
+from tests.train.test_trainer import tiny_config
 
 # The policy loss off, so only the teacher (and the critic) move the policy.
 TAUGHT = {"ppo.teacher": "naive", "ppo.teacher_weight": 2.0, "ppo.teacher_iterations": 4,
@@ -52,22 +52,6 @@ def test_the_weight_falls_linearly_to_zero(taught: list[dict[str, np.ndarray]]) 
     # 2 * (1 - i / 4) after i iterations, then 0.
     np.testing.assert_array_equal(weights, [2.0, 1.5, 1.0, 0.5, 0.0, 0.0])
     assert PPOHyperparams(teacher_weight=0.5).teacher_weight_at(jax.numpy.asarray(1000)) == 0.5
-
-
-def test_a_teacher_of_weight_zero_changes_nothing() -> None:
-    plain = tiny_config()
-    silent = tiny_config(**{"ppo.teacher": "naive", "ppo.teacher_weight": 0.0})
-    states, metrics = [], []
-    for config in (plain, silent):
-        learner = make_learner(config.learner, config.learner.make_env(), team_on_field)
-        state, chunk = learner.update_chunk(learner.init(jax.random.key(0)))
-        states.append(state)
-        metrics.append(chunk)
-    assert leaves_equal(states[0], states[1])
-    assert set(metrics[1]) - set(metrics[0]) == {
-        "train/teacher_log_prob", "train/teacher_action_error", "train/teacher_weight"
-    }
-    assert leaves_equal(metrics[0], {name: metrics[1][name] for name in metrics[0]})
 
 
 @pytest.mark.parametrize(

@@ -133,6 +133,29 @@ def test_update_chunk_runs_compiles_once_and_is_deterministic() -> None:
     assert other.update_chunk is trainer.update_chunk
 
 
+def test_a_teacher_of_weight_zero_changes_nothing() -> None:
+    # ppo.teacher with weight 0 (elevens.train.ppo): the teacher acts on its own key, so the
+    # learner's draws, params and metrics are the plain run's (whose compiled chunk the test
+    # above left in this process's cache).
+    from elevens.runs.teams import team_on_field
+
+    plain = tiny_config().learner
+    states, metrics = [], []
+    for config, load_team in (
+        (plain, None), (tiny_config(**{"ppo.teacher": "naive", "ppo.teacher_weight": 0.0}).learner,
+                        team_on_field),
+    ):
+        learner = make_learner(config, config.make_env(), load_team)
+        state, chunk = learner.update_chunk(learner.init(jax.random.key(0)))
+        states.append(state)
+        metrics.append(chunk)
+    assert leaves_equal(states[0], states[1])
+    assert set(metrics[1]) - set(metrics[0]) == {
+        "train/teacher_log_prob", "train/teacher_action_error", "train/teacher_weight"
+    }
+    assert leaves_equal(metrics[0], {name: metrics[1][name] for name in metrics[0]})
+
+
 def test_configs_with_the_same_networks_share_their_initialisation() -> None:
     config = tiny_config()
     trainer = make_learner(config.learner, config.learner.make_env())

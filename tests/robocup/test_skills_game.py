@@ -403,12 +403,17 @@ def _ball_in_reach_of(in_reach: int, games: int = 16,
     return params, states, env.sample_actions(jax.random.key(seed + 1), (games,))
 
 
-def _steps(kickers: int | None, params: Any, states: State, actions: jax.Array) -> Any:
+@functools.cache
+def _step_of(kickers: int | None) -> Any:
+    """One compiled step a kickers setting, shared by the cases below (same shapes)."""
     env = SkillSoccer(11)
     env.kickers = kickers
+    return jax.jit(jax.vmap(env.transition, in_axes=(0, 0, 0, None)))
+
+
+def _steps(kickers: int | None, params: Any, states: State, actions: jax.Array) -> Any:
     keys = jax.random.split(jax.random.key(3), actions.shape[0])
-    return jax.jit(jax.vmap(env.transition, in_axes=(0, 0, 0, None)))(keys, states, actions,
-                                                                       params)
+    return _step_of(kickers)(keys, states, actions, params)
 
 
 @pytest.mark.parametrize("in_reach", [1, 2, 4])

@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -103,3 +104,25 @@ def test_a_config_saved_before_the_teacher_loads_without_one() -> None:
         loaded = TrainConfig.from_saved(saved, "old config.json")
     assert loaded == make_config("quickstart")
     assert loaded.learner.ppo.teacher == ""
+
+
+def test_a_balanced_teacher_weighs_every_kind_alike() -> None:
+    # Four entries, three of kind 0 and one of kind 2, all pointing at slot 0 in view: balanced,
+    # each kind's entries weigh half of the total (3 x 2/3 and 1 x 2), the mean weight is 1.
+    from elevens.nets.distributions import ParametrisedDistribution
+    from elevens.train.ppo import teacher_terms
+
+    kinds, slots = 3, 2
+    distribution = ParametrisedDistribution.create(
+        jnp.zeros((4, kinds)), jnp.zeros((4, kinds, slots)), jnp.ones((4, slots), bool),
+        jnp.zeros((4, kinds, 2)), jnp.zeros((4, kinds, 2)),
+    )
+    action = jnp.array([[0, 0, 0.1, 0.2], [0, 0, -0.3, 0.0], [0, 0, 0.5, 0.5], [2, 0, 0.0, 0.1]])
+    plain = teacher_terms(distribution, action)
+    balanced = teacher_terms(distribution, action, balance=True)
+    np.testing.assert_allclose(
+        np.asarray(balanced.log_prob), np.asarray(plain.log_prob) * [2 / 3, 2 / 3, 2 / 3, 2.0],
+        rtol=1e-6,
+    )
+    with pytest.raises(ValueError, match="ppo.teacher_balance=1 is invalid: it must be True"):
+        tiny_config(**{"ppo.teacher_balance": 1})

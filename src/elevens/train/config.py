@@ -167,6 +167,7 @@ _SILENT_DEFAULTS = (
     "learner.env.game.possession_radius", "learner.env.game.possession_by",
     "learner.env.game.observation_noise", "learner.env.randomize",
     "learner.ppo.teacher", "learner.ppo.teacher_weight", "learner.ppo.teacher_iterations",
+    "learner.ppo.teacher_balance",
 )
 
 
@@ -809,6 +810,11 @@ def _check_ppo_extras(fields: Mapping[str, Any]) -> None:
         f"ppo.teacher_weight={weight!r} is invalid: it must be a finite number >= 0",
     )
     _int_at_least("ppo.teacher_iterations", fields.get("teacher_iterations", 0), 0)
+    balance = fields.get("teacher_balance", False)
+    _require(
+        isinstance(balance, bool),
+        f"ppo.teacher_balance={balance!r} is invalid: it must be True or False",
+    )
 
 
 def validate(config: TrainConfig) -> None:

@@ -24,15 +24,15 @@ run skills-2v2 $(resume_flag "$runs/stage1") --no-progress --run.iterations 1000
   --run.eval-every 25 --run.eval-games 50 --run.eval-teams skills_naive skills_random
 
 # Stage 2: 11 v 11 from stage 1, with skills_naive as a teacher: the loss pulls the policy
-# towards skills_naive's decisions on the learner's own states, its weight falling from 1 to 0
-# over the first 100 iterations (ppo.teacher), after which PPO alone goes on. (Without the
-# teacher, 50 iterations of 11 v 11 mixed with 2 v 2 stayed at 0.50 against skills_naive, nine
-# games in ten drawn.)
+# towards skills_naive's decisions on the learner's own states, every kind weighed alike
+# (--ppo.teacher-balance: GO_TO is 85% of them), the weight falling from 1 to 0 over the first
+# 200 iterations, after which PPO alone goes on (docs/results/robocup_learned.md).
 run skills-11v11 $(resume_flag "$runs/stage2") --no-progress \
   --run.init-from "$runs/stage1" --run.iterations 300 --run.max-minutes 0 \
   --run.run-dir "$runs/stage2" --games-per-iteration 16 --ppo.minibatch-size 44 \
   --opponent.mix skills_naive=0.25 \
-  --ppo.teacher skills_naive --ppo.teacher-weight 1 --ppo.teacher-iterations 100 \
+  --ppo.teacher skills_naive --ppo.teacher-weight 1 --ppo.teacher-iterations 200 \
+  --ppo.teacher-balance \
   --run.eval-every 20 --run.eval-games 50 --run.eval-teams skills_naive skills_random
 
 "$elevens" export-team "$runs/stage2" --out "$runs/export/elevens-skills"

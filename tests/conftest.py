@@ -70,27 +70,7 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     parser.addoption("--slow", action="store_true", default=False, help="run slow tests too")
 
 
-# The dearest files (CPU seconds in a quiet CI run, dearest first) go to the two workers first,
-# the many small ones fill in after them: collected last, test_trainer.py alone kept one worker
-# busy for a minute after the other had finished (pyproject: --no-loadscope-reorder keeps this
-# order; xdist would otherwise order files by their number of tests).
-_DEAREST_FIRST = (
-    "tests/train/test_trainer.py",
-    "tests/robocup/test_train_play.py",
-    "tests/robocup/test_skills_game.py",
-    "tests/test_play.py",
-    "tests/teams/test_panel.py",
-    "tests/train/test_run_directory.py",
-    "tests/nets/test_parametrised.py",
-    "tests/train/test_parallel.py",
-    "tests/robocup/test_skills_finetune.py",
-    "tests/train/test_opponent_mix.py",
-)
-
-
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    rank = {path: i for i, path in enumerate(_DEAREST_FIRST)}
-    items.sort(key=lambda item: rank.get(item.nodeid.split("::")[0], len(rank)))
     if config.getoption("--slow"):
         return
     skip_slow = pytest.mark.skip(reason="slow test: run with --slow")

@@ -21,6 +21,7 @@ from elevens.robocup.skills.learned import (
     sim_observation,
     skill_decisions,
 )
+from elevens.robocup.skills.naive import kick_off_points
 from elevens.robocup.skills.observe import Observation as SkillObservation
 from elevens.robocup.skills.observe import observe
 from elevens.robocup.skills.space import Kind
@@ -105,6 +106,27 @@ def test_slots_the_world_model_does_not_place_are_masked_and_zero() -> None:
     ball = SELF_FEATURES.index("ball_visible")
     assert back.self_features[0, ball] == 1.0 and not back.self_features[1, ball:].any()
     assert back.entity_mask.sum(1).tolist() == [21, 19]
+
+
+def test_an_unset_own_position_stands_at_its_kick_off_point_and_nothing_is_nan() -> None:
+    # Before its first see, librcsc's own position is unset (inf): in a real match every shirt's
+    # first request had it, and the NaN features it gave kept a recurrent policy's memory NaN
+    # for the whole match (every decision then decoded as INTERCEPT or SHOOT).
+    obs = observe([state(Scene(ball=(10.0, 5.0)), u) for u in (1, 7)])
+    pos = obs.pos.copy()
+    pos[1] = np.inf
+    mates = obs.mates.copy()
+    mates[0, 9] = np.nan  # player 1's estimate of teammate 10 is not a number
+    back = sim_observation(SkillObservation(**{**vars(obs), "pos": pos, "mates": mates}))
+    assert np.isfinite(back.self_features).all() and np.isfinite(back.entities).all()
+    kick_off = kick_off_points(np.array([7]))[0] / [SKILLS_FIELD.half_length,
+                                                     SKILLS_FIELD.half_width]
+    x, y = SELF_FEATURES.index("x"), SELF_FEATURES.index("y")
+    np.testing.assert_allclose(back.self_features[1, [x, y]], kick_off, rtol=1e-6)
+    assert not back.entity_mask[0, 8] and not back.entities[0, 8].any()  # shirt 10's slot
+    # The other player's view is the one it had before.
+    before = sim_observation(obs)
+    np.testing.assert_array_equal(back.self_features[0], before.self_features[0])
 
 
 def test_a_pass_or_mark_through_an_unplaced_slot_falls_back() -> None:

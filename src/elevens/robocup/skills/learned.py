@@ -103,7 +103,13 @@ def sim_observation(obs: SkillObservation, field: Field = SKILLS_FIELD, *,
     m = len(obs)
     extent = np.array([field.half_length, field.half_width], np.float32)
     length = 2.0 * field.half_length
-    heading = np.radians(np.asarray(obs.body, np.float64))
+    # Before its first see a player's own position is unset in the world model (inf): its
+    # kick-off point stands in, where the runtime places it. A NaN feature would poison a
+    # recurrent policy's memory for the rest of the match.
+    pos = np.asarray(obs.pos, np.float64)
+    pos = np.where(np.isfinite(pos).all(axis=-1, keepdims=True), pos,
+                   kick_off_points(np.asarray(obs.unum)))
+    heading = np.radians(np.nan_to_num(np.asarray(obs.body, np.float64), posinf=0.0, neginf=0.0))
     c, s = np.cos(heading)[:, None], np.sin(heading)[:, None]
 
     table = _slot_table(np.asarray(obs.unum))
@@ -119,8 +125,13 @@ def sim_observation(obs: SkillObservation, field: Field = SKILLS_FIELD, *,
         return np.take_along_axis(a, index, axis=1)
 
     where, velocity, body, mask = slotted(where), slotted(velocity), slotted(body), slotted(placed)
-    dx = where[..., 0] - np.asarray(obs.pos)[:, 0:1]
-    dy = where[..., 1] - np.asarray(obs.pos)[:, 1:2]
+    # A slot whose estimate is not a number is out of view (its features 0, not NaN).
+    mask = mask & np.isfinite(where).all(axis=-1)
+    where = np.where(mask[..., None], where, 0.0)
+    velocity = np.where(mask[..., None] & np.isfinite(velocity), velocity, 0.0)
+    body = np.where(mask & np.isfinite(body), body, 0.0)
+    dx = where[..., 0] - pos[:, 0:1]
+    dy = where[..., 1] - pos[:, 1:2]
     distance = np.sqrt(dx * dx + dy * dy)
     safe = distance > 1e-6
     inverse = 1.0 / np.where(safe, distance, 1.0)
@@ -149,8 +160,8 @@ def sim_observation(obs: SkillObservation, field: Field = SKILLS_FIELD, *,
     cycle = np.asarray(obs.cycle) % episode_length
     own = {
         "time_left": np.clip(1.0 - cycle / episode_length, 0.0, 1.0),
-        "x": np.asarray(obs.pos)[:, 0] / extent[0],
-        "y": np.asarray(obs.pos)[:, 1] / extent[1],
+        "x": pos[:, 0] / extent[0],
+        "y": pos[:, 1] / extent[1],
         "cos_heading": c[:, 0],
         "sin_heading": s[:, 0],
         "last_move": np.zeros(m),

@@ -124,5 +124,13 @@ def test_a_balanced_teacher_weighs_every_kind_alike() -> None:
         np.asarray(balanced.log_prob), np.asarray(plain.log_prob) * [2 / 3, 2 / 3, 2 / 3, 2.0],
         rtol=1e-6,
     )
+    # Only the entries the policy played count: a routine's entry weighs 0 and leaves the counts.
+    played = jnp.array([True, True, False, True])
+    among_played = teacher_terms(distribution, action, balance=True, played=played)
+    np.testing.assert_array_equal(np.asarray(among_played.mask), np.asarray(played))
+    np.testing.assert_allclose(
+        np.asarray(among_played.log_prob), np.asarray(plain.log_prob) * [0.75, 0.75, 0.0, 1.5],
+        rtol=1e-6,
+    )
     with pytest.raises(ValueError, match="ppo.teacher_balance=1 is invalid: it must be True"):
         tiny_config(**{"ppo.teacher_balance": 1})

@@ -792,25 +792,20 @@ def _check_ppo_extras(fields: Mapping[str, Any]) -> None:
     )
     for name in ("minibatch_size", "epochs"):
         _int_at_least(f"ppo.{name}", fields[name], 1)
-    for name in ("policy_weight", "value_weight", "entropy_weight"):
+    for name in ("policy_weight", "value_weight", "entropy_weight", "teacher_weight"):
         value = fields[name]
         _require(
             _is_number(value) and math.isfinite(value) and value >= 0,
             f"ppo.{name}={value!r} is invalid: it must be a finite number >= 0",
         )
-    teacher = fields.get("teacher", "")
+    teacher = fields["teacher"]
     _require(
         isinstance(teacher, str) and teacher == teacher.strip(),
         f"ppo.teacher={teacher!r} is invalid: it must be a team spec (e.g. 'naive', a shipped "
         "team or runs/NAME), without spaces around it, or '' for none",
     )
-    weight = fields.get("teacher_weight", 0.0)
-    _require(
-        _is_number(weight) and math.isfinite(weight) and weight >= 0,
-        f"ppo.teacher_weight={weight!r} is invalid: it must be a finite number >= 0",
-    )
-    _int_at_least("ppo.teacher_iterations", fields.get("teacher_iterations", 0), 0)
-    balance = fields.get("teacher_balance", False)
+    _int_at_least("ppo.teacher_iterations", fields["teacher_iterations"], 0)
+    balance = fields["teacher_balance"]
     _require(
         isinstance(balance, bool),
         f"ppo.teacher_balance={balance!r} is invalid: it must be True or False",

@@ -693,11 +693,8 @@ def _fixed_opponents(
     once per learner and checked against the game's size and action."""
     fixed = []
     for spec, games in teams:
-        team = load_team(spec, env_params, "opponent.mix")
-        try:
-            team.check_size(players_per_team, actions)
-        except ValueError as error:
-            raise ValueError(f"opponent.mix team {spec!r}: {error}") from error
+        team = _checked_team(spec, "opponent.mix", players_per_team, actions, env_params,
+                             load_team)
         fixed.append(FixedOpponent(policy=team.policy, params=team.params, games=games))
     return tuple(fixed)
 
@@ -706,12 +703,22 @@ def _teacher(
     spec: str, players_per_team: int, actions: int, env_params: EnvParams, load_team: TeamLoader,
 ) -> Teacher:
     """The team of ``ppo.teacher``, loaded once per learner and checked against the game."""
-    team = load_team(spec, env_params, "ppo.teacher")
+    team = _checked_team(spec, "ppo.teacher", players_per_team, actions, env_params, load_team)
+    return Teacher(policy=team.policy, params=team.params)
+
+
+def _checked_team(
+    spec: str, field: str, players_per_team: int, actions: int, env_params: EnvParams,
+    load_team: TeamLoader,
+) -> Team:
+    """``load_team(spec)`` for the config field ``field``, checked against the game's size and
+    action (an error names the field and the team)."""
+    team = load_team(spec, env_params, field)
     try:
         team.check_size(players_per_team, actions)
     except ValueError as error:
-        raise ValueError(f"ppo.teacher team {spec!r}: {error}") from error
-    return Teacher(policy=team.policy, params=team.params)
+        raise ValueError(f"{field} team {spec!r}: {error}") from error
+    return team
 
 
 def _mix_blocks(mix: list[tuple[str, int]]) -> tuple[tuple[str, int, int], ...]:

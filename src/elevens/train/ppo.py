@@ -291,6 +291,15 @@ def _masked_mean(x: jax.Array, mask: ArrayLike | None) -> jax.Array:
     return jnp.sum(x * weights) / jnp.maximum(jnp.sum(weights), 1.0)
 
 
+def _both(first: ArrayLike | None, second: ArrayLike | None) -> jax.Array | None:
+    """The entries True in both masks (a missing mask is all True)."""
+    if first is None or second is None:
+        return None if first is None and second is None else jnp.asarray(
+            second if first is None else first, bool
+        )
+    return jnp.asarray(first, bool) & jnp.asarray(second, bool)
+
+
 class PolicyLoss(NamedTuple):
     """Output of ``policy_loss``; all scalars ``f32[]``."""
 
@@ -455,10 +464,7 @@ def ppo_loss(
     if advantages is None:
         advantages = returns - jax.lax.stop_gradient(values)
     advantages = jax.lax.stop_gradient(jnp.asarray(advantages, jnp.float32))
-    acted = mask
-    if policy_mask is not None:
-        acted = jnp.asarray(policy_mask, bool)
-        acted = acted if mask is None else acted & jnp.asarray(mask, bool)
+    acted = _both(policy_mask, mask)
     advantage_mean = _masked_mean(advantages, acted)
     if hp.normalize_advantages:
         advantages = normalize_advantages(advantages, acted)
@@ -492,15 +498,6 @@ def ppo_loss(
     )
 
 
-def _both(first: ArrayLike | None, second: ArrayLike | None) -> jax.Array | None:
-    """The entries True in both masks (a missing mask is all True)."""
-    if first is None or second is None:
-        return None if first is None and second is None else jnp.asarray(
-            second if first is None else first, bool
-        )
-    return jnp.asarray(first, bool) & jnp.asarray(second, bool)
-
-
 TEACHER_ACTION_LIMIT = 0.99
 """The teacher's continuous action values are clipped to +-0.99 before ``atanh`` (u = +-2.65):
 a scripted team plays +-1 often (full speed), whose pre-tanh value is +-inf, and even
@@ -514,20 +511,25 @@ class TeacherTerms(NamedTuple):
     log_prob: jax.Array
     """log pi(teacher's action), differentiable in the distribution's params."""
     mask: jax.Array | None
-    """bool[...] where the teacher's action counts: False where the parametrised head's teacher
-    points at no slot in the policy's view (probability 0: log pi would be -1e9)."""
+    """bool[...] where the teacher's action counts: where the policy played (``played``), and
+    not where the parametrised head's teacher points at no slot in the policy's view
+    (probability 0: log pi would be -1e9); None: everywhere."""
     agreement: jax.Array | None
     """Parametrised head: 1 where the policy's likeliest kind is the teacher's."""
     action_error: jax.Array | None
     """Gaussian head: mean |tanh(mean) - teacher's action| over the action values."""
 
 
-def teacher_terms(distribution: Any, action: jax.Array, balance: bool = False) -> TeacherTerms:
+def teacher_terms(
+    distribution: Any, action: jax.Array, balance: bool = False, played: ArrayLike | None = None,
+) -> TeacherTerms:
     """The policy's ``distribution`` (``TanhGaussian`` or ``ParametrisedDistribution``, leading
     [...]) scored on a teacher's ``action`` f32[..., A], the game's action format (the format of
     the policy's own sampled action), continuous values clipped to ``TEACHER_ACTION_LIMIT``;
-    ``balance``: the parametrised head's log-probabilities weighted by the inverse share of the
-    teacher's kind among the entries that count (``PPOHyperparams.teacher_balance``)."""
+    ``played``: bool[...] where the policy's action was played (None: everywhere), the only
+    entries that count; ``balance``: the parametrised head's log-probabilities weighted by the
+    inverse share of the teacher's kind among the entries that count
+    (``PPOHyperparams.teacher_balance``)."""
     from elevens.nets.distributions import ParametrisedDistribution
 
     action = jax.lax.stop_gradient(jnp.asarray(action, jnp.float32))
@@ -539,7 +541,8 @@ def teacher_terms(distribution: Any, action: jax.Array, balance: bool = False) -
         slots = jnp.arange(distribution.pointer_mask.shape[-1])
         pointer = action[..., 1].astype(jnp.int32)[..., None]
         seen = jnp.any(distribution.pointer_mask & (slots == pointer), axis=-1)
-        mask = seen | ~jnp.any(distribution.pointer_mask, axis=-1)
+        mask = _both(seen | ~jnp.any(distribution.pointer_mask, axis=-1), played)
+        assert mask is not None
         kinds = distribution.kind_logits.shape[-1]
         kind = jnp.clip(action[..., 0].astype(jnp.int32), 0, kinds - 1)
         likeliest = jnp.argmax(jax.lax.stop_gradient(distribution.kind_logits), axis=-1)
@@ -556,7 +559,7 @@ def teacher_terms(distribution: Any, action: jax.Array, balance: bool = False) -
     mode = jax.lax.stop_gradient(distribution.mode())
     return TeacherTerms(
         log_prob=distribution.log_prob_of_action(clipped),
-        mask=None,
+        mask=None if played is None else jnp.asarray(played, bool),
         agreement=None,
         action_error=jnp.mean(jnp.abs(mode - clipped), axis=-1),
     )
@@ -629,7 +632,8 @@ def sequence_loss(
     if batch.teacher_action is not None:
         assert batch.teacher_weight is not None
         terms = teacher_terms(
-            distribution, sequences(batch.teacher_action), hp.teacher_balance
+            distribution, sequences(batch.teacher_action), hp.teacher_balance,
+            None if batch.policy_mask is None else sequences(batch.policy_mask),
         )
         taught = {
             "teacher_log_prob": terms.log_prob,
@@ -655,12 +659,11 @@ def sequence_loss(
     if terms is None:
         return loss.total, loss
     # The teacher's diagnostics, where its action counts (as in the loss).
-    where = _both(terms.mask, None if batch.policy_mask is None else sequences(batch.policy_mask))
     return loss.total, loss._replace(
         teacher_agreement=None if terms.agreement is None
-        else _masked_mean(terms.agreement, where),
+        else _masked_mean(terms.agreement, terms.mask),
         teacher_action_error=None if terms.action_error is None
-        else _masked_mean(terms.action_error, where),
+        else _masked_mean(terms.action_error, terms.mask),
     )
 
 

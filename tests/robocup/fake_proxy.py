@@ -74,6 +74,8 @@ class Scene:
     kickable: int = 0  # our shirt number with the ball (0: none)
     kickable_opponent: bool = False
     score: tuple[int, int] = (0, 0)  # ours, theirs, as the referee announced them
+    our_set_play: bool = False
+    last_kicker: int = 0  # our shirt number that kicked last (0: one of theirs, or nobody)
 
 
 def _v(m: Any, xy: Sequence[float], me: Sequence[float] | None = None) -> Any:
@@ -131,7 +133,9 @@ def state(scene: Scene, unum: int) -> Any:
         ball=m.Ball(position=_v(m, ball, me), velocity=_v(m, (0.0, 0.0)), pos_count=0),
         teammates=mates, opponents=opps, their_goalie_uniform_number=1,
         offside_line_x=float(max(np.sort(scene.theirs[:, 0])[-2], ball[0], 0.0)),
-        cycle=scene.cycle, game_mode_type=scene.mode, is_our_set_play=False, stoped_cycle=0,
+        cycle=scene.cycle, game_mode_type=scene.mode, is_our_set_play=scene.our_set_play,
+        last_kick_side=1 if scene.last_kicker else 2, last_kicker_uniform_number=scene.last_kicker,
+        stoped_cycle=0,
         our_team_score=scene.score[0], their_team_score=scene.score[1],
         is_penalty_kick_mode=False,
         kickable_teammate_existance=scene.kickable not in (0, unum),
@@ -159,10 +163,13 @@ def varied_cycle(rng: np.random.Generator, cycle: int = 1) -> list[Any]:
         ball = ours[kickable - 1] + rng.normal(0.0, 0.3, 2)
     elif theirs_ball:
         ball = theirs[int(rng.integers(0, 11))] + rng.normal(0.0, 0.3, 2)
+    mode = int(rng.choice([2, 2, 2, 2, 0, 8, 3, 5, 10]))
     scene = Scene(
         ours=ours, theirs=theirs,
-        ball=(float(ball[0]), float(ball[1])), mode=int(rng.choice([2, 2, 2, 2, 0, 8, 3, 5, 10])),
+        ball=(float(ball[0]), float(ball[1])), mode=mode,
         cycle=cycle, kickable=kickable, kickable_opponent=theirs_ball,
+        # Without a draw of their own, so that the moments stay what they were.
+        our_set_play=mode in (3, 5, 10) and cycle % 2 == 0, last_kicker=kickable or cycle % 12,
     )
     states = []
     for unum in range(1, 12):

@@ -349,6 +349,19 @@ def test_a_skills_team_runs_as_elevens_robocup_skills_team() -> None:
     assert "--proxy" not in command
     given = SkillsTeam("skills_naive", "skills", proxy="/opt/proxy")
     assert given.command("h", 1, 11, synch=False)[-2:] == ["--proxy", "/opt/proxy"]
+    assert "--set-plays" not in command  # the routine is the default
+    decided = parse_team("skills_naive", None, "skills", set_plays="decided")
+    command = decided.command("127.0.0.1", 6100, 11, synch=True)
+    assert command[command.index("--set-plays") + 1] == "decided"
+
+
+def test_set_plays_are_refused_in_one_line_unless_a_skills_team_decides_them() -> None:
+    with pytest.raises(ValueError, match=r"--team0-set-plays 'own' is invalid \(allowed: "
+                                         r"routine, decided\)"):
+        parse_team("skills_naive", None, "x", set_plays="own", set_plays_flag="--team0-set-plays")
+    for spec, cmd in (("naive", None), (None, "start.sh -p {port}")):
+        with pytest.raises(ValueError, match="--set-plays 'decided' is for a skills team"):
+            parse_team(spec, cmd, "x", set_plays="decided")
 
 
 def test_match_refuses_a_skills_team_without_the_proxy_in_one_line(

@@ -142,6 +142,17 @@ def test_a_pass_or_mark_through_an_unplaced_slot_falls_back() -> None:
     assert skill_decisions(obs, mark_3, seen).kind.tolist() == [GO_TO]
 
 
+def test_a_team_deciding_its_set_plays_plays_its_decoded_kinds_in_ours_only() -> None:
+    ours = Scene(ball=(-20.0, 0.0), kickable=7, mode=5, our_set_play=True)  # our free kick
+    theirs = Scene(ball=(-20.0, 0.0), mode=5)
+    seen = np.ones((1, 22), bool)
+    pass_8 = np.array([[PASS, 6, 0.0, 0.0]], np.float32)
+    for scene, decided in ((ours, [Kind.PASS]), (theirs, [Kind.SET_PLAY])):
+        obs = observe([state(scene, 7)])
+        assert skill_decisions(obs, pass_8, seen).kind.tolist() == [Kind.SET_PLAY]
+        assert skill_decisions(obs, pass_8, seen, set_plays="decided").kind.tolist() == decided
+
+
 # ------------------------------------------------------------------ a trained team decides
 TINY = {
     "env.episode_length": 8, "games_per_iteration": 2, "network.features": 16,
@@ -202,6 +213,22 @@ def test_a_trained_checkpoint_decides_a_cycle_in_one_policy_call(decide: Learned
     placing = decide.decisions(observe(_states(Scene(mode=0))))
     assert set(placing.kind.tolist()) == {Kind.KICKOFF_MOVE}
     assert (placing.point[:, 0] <= -1.0).all()
+
+
+def test_a_trained_team_deciding_its_set_plays_keeps_the_free_kick_rule(trained: Path) -> None:
+    with pytest.raises(ValueError, match=r"--set-plays 'own' is invalid"):
+        skills_policy(str(trained), set_plays="own")
+    deciding = skills_policy(str(trained), set_plays="decided")
+    assert isinstance(deciding, LearnedSkills) and deciding.set_plays == "decided"
+    kick_off = Scene(ball=(0.0, 0.0), kickable=10, mode=3, our_set_play=True, cycle=1)
+    kinds = deciding.decisions(observe(_states(kick_off))).kind
+    assert kinds[0] == Kind.GOALIE and Kind.SET_PLAY not in kinds.tolist()
+    # Player 10 had the ball in our set play: in play on, while it is the last kicker, it
+    # neither dribbles nor runs at the ball; reset (a new match) forgets it.
+    after = observe([state(Scene(ball=(8.0, 0.0), mode=2, last_kicker=10, cycle=2), 10)])
+    assert deciding.guard.takers(after).tolist() == [True]
+    deciding.reset()
+    assert deciding.guard.takers(after).tolist() == [False]
 
 
 def test_the_memory_is_kept_per_shirt_and_the_mode_is_deterministic(

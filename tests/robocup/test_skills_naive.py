@@ -13,11 +13,20 @@ from elevens.robocup.skills.naive import (
     DEEPEST,
     DEFEND_DROP,
     FORMATION,
+    SkillsNaive,
     skills_naive_decisions,
     slot_targets,
 )
 from elevens.robocup.skills.observe import Observation, observe
-from elevens.robocup.skills.space import Decisions, Kind, pass_speed, to_player_actions
+from elevens.robocup.skills.set_plays import TAKER_CYCLES
+from elevens.robocup.skills.space import (
+    DRIBBLE_DIRECTIONS,
+    DRIBBLE_LENGTH,
+    Decisions,
+    Kind,
+    pass_speed,
+    to_player_actions,
+)
 from tests.robocup.fake_proxy import OURS, THEIRS, Scene, state
 
 FAR_OPPONENTS = np.array([[50.0, 0.0]] + [[40.0, -30.0 + 6.0 * k] for k in range(10)],
@@ -106,11 +115,81 @@ def test_set_pieces_and_the_goalie_use_the_ready_behaviours() -> None:
     assert not answers[1].ignore_doIntention  # set plays keep the proxy's reflexes
 
 
+def _kick_off(cycle: int = 1, **changes: object) -> Scene:
+    """Our kick-off: player 10 at the ball on the centre spot, the rest in our half."""
+    ours = OURS.copy()
+    ours[9] = (-0.6, 0.0)
+    scene = Scene(ours=ours, ball=(0.0, 0.0), mode=3, our_set_play=True, kickable=10,
+                  cycle=cycle)
+    return dataclasses.replace(scene, **changes)
+
+
+def test_a_team_deciding_its_set_plays_takes_the_kick_off_and_keeps_the_free_kick_rule() -> None:
+    team = SkillsNaive()
+    unums = (1, 9, 10)
+    states = [state(_kick_off(), u) for u in unums]
+    obs = observe(states)
+    routine = skills_naive_decisions(obs)
+    assert list(routine.kind) == [Kind.GOALIE, Kind.SET_PLAY, Kind.SET_PLAY]
+    # Decided: the goalie keeps its routine; no teammate is ahead of the ball, so the taker
+    # dribbles, which a set play's taker may do only in kicks: a KICK to the dribble's end.
+    decided = skills_naive_decisions(obs, "decided")
+    assert decided.kind[0] == Kind.GOALIE and decided.kind[1] not in (Kind.SET_PLAY, Kind.KICK)
+    assert decided.kind[2] == Kind.DRIBBLE
+    answers = team(states)
+    kick = answers[2].actions[0].body_smart_kick
+    end = obs.pos[2] + DRIBBLE_LENGTH * DRIBBLE_DIRECTIONS[decided.index[2]]
+    assert (kick.target_point.x, kick.target_point.y) == pytest.approx(tuple(end), abs=1e-4)
+    assert kick.first_speed == pytest.approx(float(pass_speed(DRIBBLE_LENGTH)), rel=1e-5)
+    assert answers[2].ignore_doIntention and answers[1].ignore_doIntention
+    # Play on, the ball 8 m ahead and player 10 the last kicker: it may not run at the ball
+    # (an intercept becomes a run to its slot); once another player kicks, it may.
+    ball = (float(end[0]), float(end[1]))
+    ours = OURS.copy()
+    ours[9] = (0.0, 0.0)
+    after = Scene(ours=ours, ball=ball, mode=2, last_kicker=10, cycle=2)
+    took = observe([state(after, 10)])
+    assert skills_naive_decisions(took).kind[0] == Kind.INTERCEPT
+    answer = team([state(after, 10)])[0]
+    assert answer.actions[0].body_go_to_point is not None
+    assert team([state(dataclasses.replace(after, cycle=3), 10)])[0] == answer
+    touched = dataclasses.replace(after, last_kicker=9, cycle=4)
+    assert team([state(touched, 10)])[0].actions[0].body_intercept is not None
+    assert team([state(dataclasses.replace(after, cycle=5), 10)])[0].actions[0].body_intercept \
+        is not None  # the memory ended with the other kick
+
+
+def test_the_free_kick_rule_ends_at_another_stoppage_and_after_its_cycles() -> None:
+    team = SkillsNaive()
+    team([state(_kick_off(cycle=10), 10)])
+    ours = OURS.copy()
+    ours[9] = (0.0, 0.0)
+    after = Scene(ours=ours, ball=(8.0, 0.0), mode=2, last_kicker=10)
+    bound = dataclasses.replace(after, cycle=10 + TAKER_CYCLES)
+    assert team([state(bound, 10)])[0].actions[0].body_go_to_point is not None
+    late = dataclasses.replace(after, cycle=11 + TAKER_CYCLES)
+    assert team([state(late, 10)])[0].actions[0].body_intercept is not None
+    team([state(_kick_off(cycle=20), 10)])
+    team([state(dataclasses.replace(after, mode=5, our_set_play=False, cycle=21), 10)])
+    assert team([state(dataclasses.replace(after, cycle=22), 10)])[0].actions[0] \
+        .body_intercept is not None
+    team.reset()
+    assert not team.guard.takers(observe([state(dataclasses.replace(after, cycle=23), 10)])).any()
+
+
+def test_their_set_plays_goal_kicks_and_the_goalies_catch_stay_routines_when_deciding() -> None:
+    for mode, ours in ((5, False), (4, False), (7, True), (30, True)):
+        scene = Scene(mode=mode, our_set_play=ours, ball=(30.0, 10.0))
+        obs = observe([state(scene, u) for u in (1, 5)])
+        kinds = skills_naive_decisions(obs, "decided").kind
+        assert list(kinds) == [Kind.GOALIE, Kind.SET_PLAY], mode
+
+
 def test_bad_decisions_are_refused_in_one_line() -> None:
     obs = observe([state(Scene(), 2)])
     with pytest.raises(ValueError, match=r"PASS index 12 \(allowed: 1..11\)"):
         to_player_actions(Decisions.of(np.array([Kind.PASS]), np.array([12])), obs)
-    with pytest.raises(ValueError, match=r"kind 42 \(allowed: 0..11\)"):
+    with pytest.raises(ValueError, match=r"kind 42 \(allowed: 0..12\)"):
         to_player_actions(Decisions.of(np.array([42])), obs)
     with pytest.raises(ValueError, match=r"shapes kind \(2,\)"):
         to_player_actions(Decisions.of(np.array([0, 0])), obs)

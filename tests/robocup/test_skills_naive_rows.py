@@ -11,9 +11,10 @@ from typing import Any
 import numpy as np
 
 from elevens.robocup.skills import naive
-from elevens.robocup.skills.naive import skills_naive
+from elevens.robocup.skills.naive import SkillsNaive, skills_naive
 from elevens.robocup.skills.observe import observe
 from elevens.robocup.skills.runtime import is_rowwise
+from elevens.robocup.skills.set_plays import TakerGuard
 from elevens.robocup.skills.space import Kind, to_player_actions
 from tests.robocup.fake_proxy import varied_cycle
 
@@ -37,9 +38,34 @@ def test_each_row_is_decided_as_in_the_whole_batch_and_routines_skip_open_play()
         decisions = naive.skills_naive_decisions(obs)
         assert whole == to_player_actions(decisions, obs)
         kinds |= set(decisions.kind.tolist())
-    # The scenes reach every kind but the rare SHOOT and HOLD (test_skills_naive's scenes):
-    # marking and passing or dribbling among them, the parts one player's decision skips.
-    assert kinds == set(Kind) - {Kind.SHOOT, Kind.HOLD}
+    # The scenes reach every kind but the rare SHOOT and HOLD (test_skills_naive's scenes)
+    # and a set play's KICK: marking and passing or dribbling among them, the parts one
+    # player's decision skips.
+    assert kinds == set(Kind) - {Kind.SHOOT, Kind.HOLD, Kind.KICK}
+
+
+def test_deciding_our_set_plays_is_rowwise_and_only_our_set_plays_change() -> None:
+    whole, alone, split = SkillsNaive(), SkillsNaive(), SkillsNaive()
+    assert is_rowwise(whole)
+    guard = TakerGuard()  # beside whole's: which rows the free-kick rule binds
+    rng = np.random.default_rng(8)
+    changed = 0
+    for states in _cycles(40):
+        answers = whole(states)
+        cut = int(rng.integers(1, len(states)))
+        parts = split(states[:cut]) + split(states[cut:])
+        assert answers == [alone([s])[0] for s in states] == parts
+        obs = observe(states)
+        routine = to_player_actions(naive.skills_naive_decisions(obs), obs)
+        ours = obs.our_set_play & np.isin(obs.mode, (3, 5)) & ~obs.goalie & ~obs.penalty
+        bound = guard.takers(obs)
+        for i, (got, want) in enumerate(zip(answers, routine, strict=True)):
+            if ours[i]:
+                assert got.actions[0].helios_set_play is None and got.ignore_doIntention
+                changed += 1
+            elif not bound[i]:
+                assert got == want, i
+    assert changed > 10
 
 
 def test_the_trimmed_numpy_path_decides_as_the_plain_one() -> None:

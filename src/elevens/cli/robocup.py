@@ -131,6 +131,11 @@ class RoboCupMatchArgs:
     """Left elevens team: play the policy's sampled action (elevens robocup team --sample)."""
     team1_sample: bool = False
     """Right elevens team, as --team0-sample."""
+    team0_set_plays: str = "routine"
+    """Left skills team: our kick-offs, free kicks, kick-ins and corners played by the proxy's
+    ready behaviour ("routine") or by the team's own decisions ("decided")."""
+    team1_set_plays: str = "routine"
+    """Right skills team, as --team0-set-plays."""
     matches: int = 1
     """Matches to play (a new server for each)."""
     players: int = 11
@@ -291,11 +296,13 @@ def match_teams(args: RoboCupMatchArgs) -> tuple[Any, Any]:
         args.team0 if args.team0_cmd is None else None, args.team0_cmd, args.team0_name,
         turn_scale=args.team0_turn_scale, view=args.team0_view,
         dead_reckoning=args.team0_dead_reckoning, sample=args.team0_sample,
+        set_plays=args.team0_set_plays, set_plays_flag="--team0-set-plays",
     )
     team1 = parse_team(
         args.team1, args.team1_cmd, args.team1_name, turn_scale=args.team1_turn_scale,
         view=args.team1_view, dead_reckoning=args.team1_dead_reckoning,
-        sample=args.team1_sample,
+        sample=args.team1_sample, set_plays=args.team1_set_plays,
+        set_plays_flag="--team1-set-plays",
     )
     return team0, team1
 

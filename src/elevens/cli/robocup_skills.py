@@ -29,6 +29,9 @@ class RoboCupSkillsTeamArgs:
     exported from one)."""
     sample: bool = False
     """A trained team samples its actions instead of playing their mode."""
+    set_plays: str = "routine"
+    """Our kick-offs, free kicks, kick-ins and corners: the proxy's ready behaviour
+    ("routine") or the team's own decisions ("decided"; docs/robocup_skills.md)."""
     host: str = "127.0.0.1"
     """The server's host."""
     port: int = 6000
@@ -56,10 +59,12 @@ def skills_team(args: RoboCupSkillsTeamArgs) -> None:
     from elevens.robocup.server import ServerAddress
     from elevens.robocup.skills import check_skills_policy, skills_policy
     from elevens.robocup.skills.proxy import find_proxy, play_skills_team
+    from elevens.robocup.skills.set_plays import check_set_plays
 
     # Bad input first, in one line each: the team (its config only), its name, the proxy;
     # then the team's networks are loaded and compiled, before the players start.
     check_skills_policy(args.skills)
+    check_set_plays(args.set_plays)
     InitPlayer(args.team_name)
     if args.gather_ms >= args.deadline_ms:
         raise ValueError(
@@ -67,7 +72,8 @@ def skills_team(args: RoboCupSkillsTeamArgs) -> None:
             f"{args.deadline_ms:g}"
         )
     find_proxy(args.proxy)
-    decide = skills_policy(args.skills, deterministic=not args.sample)
+    decide = skills_policy(args.skills, deterministic=not args.sample,
+                           set_plays=args.set_plays)
     # What is loaded by now lives as long as the process: out of the collector's full passes,
     # each of which (some 130,000 objects with JAX, tens of ms) held a cycle's decisions up.
     gc.freeze()

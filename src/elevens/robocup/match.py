@@ -103,12 +103,14 @@ class SkillsTeam:
     """A skills team (``spec``: a name of ``elevens.robocup.skills.SKILLS`` or a trained
     skills team), run as ``elevens robocup skills-team``: elevens' decision server and the
     proxy's players, which it starts (``proxy``: their folder; None: where ``skills-team``
-    looks by default). ``sample``: a trained team samples its actions."""
+    looks by default). ``sample``: a trained team samples its actions; ``set_plays``: how it
+    plays our set plays (``skills.set_plays.SET_PLAYS``)."""
 
     spec: str
     name: str = "elevens"
     proxy: str | None = None
     sample: bool = False
+    set_plays: str = "routine"
 
     def command(self, host: str, port: int, players: int, synch: bool) -> list[str]:
         # The decision server batches by arrival: synch mode and real time need no flag.
@@ -118,6 +120,7 @@ class SkillsTeam:
             "--players", str(players), "--json",
         ]
         args += ["--sample"] if self.sample else []
+        args += [] if self.set_plays == "routine" else ["--set-plays", self.set_plays]
         return args + ([] if self.proxy is None else ["--proxy", self.proxy])
 
 
@@ -441,8 +444,17 @@ def parse_team(
     view: str = "wide",
     dead_reckoning: bool = False,
     sample: bool = False,
+    set_plays: str = "routine",
+    set_plays_flag: str = "--set-plays",
 ) -> Team:
-    """--teamN / --teamN-cmd / --teamN-name as a Team; exactly one of spec and cmd."""
+    """--teamN / --teamN-cmd / --teamN-name as a Team; exactly one of spec and cmd;
+    ``set_plays`` (flag ``set_plays_flag``) other than "routine" only for a skills team."""
+    from elevens.robocup.skills.set_plays import check_set_plays
+
+    check_set_plays(set_plays, set_plays_flag)
+    only_skills = ValueError(
+        f"{set_plays_flag} {set_plays!r} is for a skills team (skills_naive, skills_random, "
+        f"skills_naive_sim or a trained skills team), not {spec or cmd!r}")
     if (spec is None) == (cmd is None):
         raise ValueError(
             f"give a team ({name}) as an elevens team (--team0/--team1: naive, random, a shipped "
@@ -451,6 +463,8 @@ def parse_team(
     if cmd is not None:
         if not shlex.split(cmd):
             raise ValueError("the team's start command is empty")
+        if set_plays != "routine":
+            raise only_skills
         return ExternalTeam(cmd, name)
     assert spec is not None
     from elevens.robocup.skills import SKILLS
@@ -458,7 +472,9 @@ def parse_team(
 
     # A trained team plays through the skills proxy when its action is the skill decision.
     if spec in SKILLS or is_skills_team(spec):
-        return SkillsTeam(spec, name, sample=sample)
+        return SkillsTeam(spec, name, sample=sample, set_plays=set_plays)
+    if set_plays != "routine":
+        raise only_skills
     try:
         ChangeView(view)
     except ValueError as error:

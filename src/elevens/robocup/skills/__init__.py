@@ -22,35 +22,37 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from elevens.robocup.skills.naive import skills_naive
+from elevens.robocup.skills.naive import SkillsNaive, skills_naive
 from elevens.robocup.skills.runtime import Decide
+from elevens.robocup.skills.set_plays import check_set_plays
 
 __all__ = ["SKILLS", "check_skills_policy", "skills_policy"]
 
 
-def _simulator_team(name: str) -> Callable[[], Decide]:
+def _simulator_team(name: str) -> Callable[[str], Decide]:
     """The simulator's handcrafted skills team ``name`` (``skills.team``) in the runtime, through
     the converter a trained team plays through (``learned.LearnedSkills``); built on demand
     (it compiles its policy call)."""
 
-    def build() -> Decide:
+    def build(set_plays: str) -> Decide:
         from elevens.robocup.skills.learned import LearnedSkills
         from elevens.robocup.skills.team import SkillsNaiveTeam, SkillsRandomTeam
 
         team = {"skills_random": SkillsRandomTeam, "skills_naive_sim": SkillsNaiveTeam}[name]()
-        decide = LearnedSkills(team, None, name=name)
+        decide = LearnedSkills(team, None, name=name, set_plays=set_plays)
         decide.warm_up()
         return decide
 
     return build
 
 
-#: The skills teams by name, each a builder of a batched ``decide(states) -> actions``:
+#: The skills teams by name, each a builder of a batched ``decide(states) -> actions`` given
+#: how it plays our set plays (``set_plays.SET_PLAYS``):
 #: ``skills_naive`` decides on librcsc's world model directly; ``skills_random`` (uniform skill
 #: actions) and ``skills_naive_sim`` (the simulator's ``skills_naive``, on the world model
 #: turned into the skill game's observation and back) play as a trained team does.
-SKILLS: dict[str, Callable[[], Decide]] = {
-    "skills_naive": lambda: skills_naive,
+SKILLS: dict[str, Callable[[str], Decide]] = {
+    "skills_naive": lambda set_plays: skills_naive if set_plays == "routine" else SkillsNaive(),
     "skills_random": _simulator_team("skills_random"),
     "skills_naive_sim": _simulator_team("skills_naive_sim"),
 }
@@ -66,13 +68,16 @@ def check_skills_policy(spec: str) -> None:
     check_skills_team(spec, sorted(SKILLS))
 
 
-def skills_policy(spec: str, *, deterministic: bool = True) -> Decide:
+def skills_policy(spec: str, *, deterministic: bool = True,
+                  set_plays: str = "routine") -> Decide:
     """The skills team ``spec``: a name of :data:`SKILLS`, or a trained skills team (a
     checkpoint path, ``PATH@ITERATION`` or an exported folder), loaded and compiled, playing
-    the mode of its action unless ``deterministic`` is False. A spec that is neither is a
+    the mode of its action unless ``deterministic`` is False, our set plays as ``set_plays``
+    says (``set_plays.SET_PLAYS``). A spec that is neither, or a bad ``set_plays``, is a
     ValueError naming what is allowed."""
+    check_set_plays(set_plays)
     if spec in SKILLS:
-        return SKILLS[spec]()
+        return SKILLS[spec](set_plays)
     from elevens.robocup.skills.learned import load_learned_skills
 
-    return load_learned_skills(spec, deterministic=deterministic)
+    return load_learned_skills(spec, deterministic=deterministic, set_plays=set_plays)

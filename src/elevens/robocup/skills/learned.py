@@ -39,6 +39,7 @@ from elevens.robocup.skills.decode import (
 from elevens.robocup.skills.naive import kick_off_points, outside_open_play
 from elevens.robocup.skills.observe import PLAYERS, observe
 from elevens.robocup.skills.observe import Observation as SkillObservation
+from elevens.robocup.skills.set_plays import TakerGuard, check_set_plays
 from elevens.robocup.skills.space import Decisions, to_player_actions
 from elevens.robocup.skills.team import SKILLS_FIELD
 from elevens.teams.scripted import Field
@@ -180,11 +181,12 @@ def sim_observation(obs: SkillObservation, field: Field = SKILLS_FIELD, *,
 
 
 def skill_decisions(obs: SkillObservation, actions: np.ndarray, seen: np.ndarray,
-                    field: Field = SKILLS_FIELD) -> Decisions:
+                    field: Field = SKILLS_FIELD, set_plays: str = "routine") -> Decisions:
     """The policy's actions f32[m, 4] for the rows of ``obs`` as the runtime's decisions:
     decoded as the simulator decodes them (each player as player ``unum - 1`` of 11 v 11;
     ``seen`` bool[m, 22] its observation's mask), then what every skills team plays outside
-    open play laid over them (``naive.outside_open_play``)."""
+    open play laid over them (``naive.outside_open_play``; our set plays as ``set_plays``
+    says)."""
     unum = np.asarray(obs.unum)
     context = SkillContext(
         observer=unum - 1, unum=unum, position=np.asarray(obs.pos), ball=np.asarray(obs.ball),
@@ -197,7 +199,8 @@ def skill_decisions(obs: SkillObservation, actions: np.ndarray, seen: np.ndarray
     index = np.where(choice.kind == PASS, choice.target + 1,
                      np.where(choice.kind == MARK, choice.target - PLAYERS + 1,
                               np.where(choice.kind == DRIBBLE, choice.direction, 0)))
-    return Decisions.of(*outside_open_play(obs, choice.kind, index, choice.point))
+    return Decisions.of(*outside_open_play(obs, choice.kind, index, choice.point,
+                                           set_plays=set_plays))
 
 
 def shirt_batches(
@@ -232,11 +235,16 @@ class LearnedSkills:
     ``policy``: a ``TeamPolicy`` of the 4-value skill action (a loaded checkpoint's
     ``NetworkTeam``; its ``deterministic`` says whether it plays the mode of its distribution
     or samples from it), ``params`` its variables. ``policy_calls`` counts the compiled calls.
+    ``set_plays``: our set plays the proxy's ready behaviour (``routine``) or the policy's
+    (``decided``, within the free-kick rule: ``set_plays.TakerGuard``).
     """
 
     def __init__(self, policy: Any, params: Any, *, name: str = "learned",
                  field: Field = SKILLS_FIELD, episode_length: int = MATCH_CLOCK,
-                 seed: int = 0) -> None:
+                 seed: int = 0, set_plays: str = "routine") -> None:
+        check_set_plays(set_plays)
+        self.set_plays = set_plays
+        self.guard = TakerGuard()
         self.policy = policy
         self.params = params
         self.name = name
@@ -250,6 +258,7 @@ class LearnedSkills:
     def reset(self) -> None:
         """Forget every player's memory (a new match)."""
         self.carry = self.policy.init_carry(PLAYERS)
+        self.guard.reset()
 
     def _step(self, params: Any, carry: Any, obs: Observation, present: jax.Array,
               key: jax.Array) -> tuple[Any, jax.Array]:
@@ -278,7 +287,10 @@ class LearnedSkills:
 
     def decisions(self, obs: SkillObservation) -> Decisions:
         actions, seen = self.actions(obs)
-        return skill_decisions(obs, actions, seen, self.field)
+        decisions = skill_decisions(obs, actions, seen, self.field, self.set_plays)
+        if self.set_plays == "decided":
+            decisions, _ = self.guard.apply(obs, decisions)
+        return decisions
 
     def __call__(self, states: Sequence[Any]) -> list[Any]:
         """The decision server's callable: the proxy's States of a cycle to PlayerActions."""
@@ -333,17 +345,18 @@ def is_skills_team(spec: str) -> bool:
         return False
 
 
-def load_learned_skills(spec: str, *, deterministic: bool = True,
-                        warm: bool = True) -> LearnedSkills:
+def load_learned_skills(spec: str, *, deterministic: bool = True, warm: bool = True,
+                        set_plays: str = "routine") -> LearnedSkills:
     """The runtime's ``decide`` for the trained skills team ``spec`` (a checkpoint path,
     ``PATH@ITERATION`` or an exported team folder): the mode of its action unless
-    ``deterministic`` is False (then sampled), compiled before it returns when ``warm``."""
+    ``deterministic`` is False (then sampled), compiled before it returns when ``warm``; our
+    set plays as ``set_plays`` says."""
     from elevens.runs.teams import load_team
 
     check_skills_team(spec)
     team = load_team(spec, deterministic=deterministic)
     team.check_size(PLAYERS, SKILL_ACTION_SIZE)
-    decide = LearnedSkills(team.policy, team.params, name=team.name)
+    decide = LearnedSkills(team.policy, team.params, name=team.name, set_plays=set_plays)
     if warm:
         decide.warm_up()
     return decide

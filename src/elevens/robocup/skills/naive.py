@@ -21,7 +21,8 @@ In open play (vectorised over every deciding player, one call a cycle):
 Before a kick-off the players move to their slots in their own half. The goalie plays the
 proxy's ready goalie behaviour in every mode but the kick-off placing, and set pieces and
 penalties are the proxy's ready behaviours: these are the parts a learned team replaces
-first.
+first. With ``set_plays="decided"`` (:class:`SkillsNaive`) our kick-offs, free kicks, kick-ins
+and corners are played by the open-play rules too (``set_plays``).
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ import numpy as np
 from elevens.robocup.skills.decode import FORMATION, SLIDE, slot_targets
 from elevens.robocup.skills.observe import PLAYERS, Observation, observe
 from elevens.robocup.skills.runtime import rowwise
+from elevens.robocup.skills.set_plays import TakerGuard, decided_set_play
 from elevens.robocup.skills.space import (
     DRIBBLE_DIRECTIONS,
     GOAL,
@@ -46,7 +48,7 @@ from elevens.robocup.skills.space import (
 __all__ = [
     "ATTACK_PUSH", "DEEPEST", "DEFEND_DROP", "FORMATION", "SHOOT_RANGE", "SLIDE",
     "kick_off_points", "naive_choices", "outside_open_play",
-    "skills_naive", "skills_naive_decisions", "slot_targets",
+    "SkillsNaive", "skills_naive", "skills_naive_decisions", "slot_targets",
 ]
 
 SHOOT_RANGE = 25.0
@@ -70,7 +72,7 @@ _PLAY_ON, _BEFORE_KICK_OFF, _AFTER_GOAL = 2, 0, 8
 # The kinds as plain ints: numpy reads an IntEnum member through attribute probes that cost
 # more than the where it goes into.
 (_SHOOT, _PASS, _DRIBBLE, _HOLD, _INTERCEPT, _GO_TO, _MARK, _TACKLE, _KICKOFF_MOVE, _GOALIE,
- _SET_PLAY, _PENALTY) = (int(k) for k in Kind)
+ _SET_PLAY, _PENALTY, _KICK) = (int(k) for k in Kind)
 
 
 def _norm(v: Any, xp: Any = np, keepdims: bool = False) -> Any:
@@ -195,10 +197,11 @@ def _marks(obs: Observation, xp: Any = np) -> tuple[Any, Any]:
     return (target + 1).astype(xp.int32), mine.any(axis=1)
 
 
-def naive_choices(obs: Observation, xp: Any = np) -> tuple[Any, Any, Any]:
+def naive_choices(obs: Observation, xp: Any = np,
+                  set_plays: str = "routine") -> tuple[Any, Any, Any]:
     """The yardstick's decisions for every row of ``obs``, as arrays of ``xp`` (numpy, or
     jax.numpy under a trace): kind int32 [n], index int32 [n], point f32 [n, 2] (the fields
-    of :class:`Decisions`)."""
+    of :class:`Decisions`); our set plays as ``set_plays`` says (:func:`outside_open_play`)."""
     n = len(obs)
     kind = xp.full(n, _GO_TO, xp.int32)
     index = xp.zeros(n, xp.int32)
@@ -250,7 +253,7 @@ def naive_choices(obs: Observation, xp: Any = np) -> tuple[Any, Any, Any]:
                               put(passing, 0.0, point))
         kind, index = put(dribble, _DRIBBLE, kind), put(dribble, direction, index)
         kind = put(hold, _HOLD, kind)
-    return outside_open_play(obs, kind, index, point, xp)
+    return outside_open_play(obs, kind, index, point, xp, set_plays)
 
 
 def kick_off_points(unum: Any, xp: Any = np) -> Any:
@@ -261,16 +264,20 @@ def kick_off_points(unum: Any, xp: Any = np) -> Any:
 
 
 def outside_open_play(obs: Observation, kind: Any, index: Any, point: Any,
-                      xp: Any = np) -> tuple[Any, Any, Any]:
+                      xp: Any = np, set_plays: str = "routine") -> tuple[Any, Any, Any]:
     """Open-play decisions (kind, index, point) with what every skills team plays outside
     open play laid over them: before a kick-off everyone moves to :func:`kick_off_points`;
-    the goalie plays the proxy's goalie, set pieces and penalties its ready behaviours."""
+    the goalie plays the proxy's goalie, set pieces and penalties its ready behaviours, but
+    with ``set_plays="decided"`` our outfield players keep their open-play decisions in our
+    kick-offs, free kicks, kick-ins and corners (``set_plays.decided_set_play``)."""
 
     def put(mask: Any, value: Any, into: Any) -> Any:
         return xp.where(mask[:, None] if into.ndim == 2 else mask, value, into)
 
     placing = (obs.mode == _BEFORE_KICK_OFF) | (obs.mode == _AFTER_GOAL)
     set_play = ~placing & (obs.mode != _PLAY_ON)
+    if set_plays == "decided":
+        set_play = set_play & ~decided_set_play(obs, xp)
     kind = put(set_play, _SET_PLAY, kind)
     kind = put(obs.goalie & ~placing, _GOALIE, kind)
     kind = put(obs.penalty, _PENALTY, kind)
@@ -279,23 +286,51 @@ def outside_open_play(obs: Observation, kind: Any, index: Any, point: Any,
     return kind.astype(xp.int32), index.astype(xp.int32), point.astype(xp.float32)
 
 
-def skills_naive_decisions(obs: Observation) -> Decisions:
+def skills_naive_decisions(obs: Observation, set_plays: str = "routine") -> Decisions:
     """The yardstick's decisions for every row of ``obs``."""
-    return Decisions.of(*naive_choices(obs))
+    return Decisions.of(*naive_choices(obs, np, set_plays))
 
 
-@rowwise  # every row is decided on its own world model: nothing to gather
-def skills_naive(states: Sequence[Any]) -> list[Any]:
-    """The decision server's callable: the proxy's States of a cycle to its PlayerActions.
-    When every row plays a routine (outside play on, the goalie, a penalty) open play is not
-    decided: none of it reaches the answers (the routine's kind replaces it, the kick-off
+def _naive_answers(states: Sequence[Any], set_plays: str,
+                   guard: TakerGuard | None = None) -> list[Any]:
+    """The proxy's States of a cycle to ``skills_naive``'s PlayerActions. When every row plays
+    a routine (outside play on and our decided set plays, the goalie, a penalty) open play is
+    not decided: none of it reaches the answers (the routine's kind replaces it, the kick-off
     spot its point)."""
     obs = observe(states)
-    if ((obs.mode != _PLAY_ON) | obs.goalie | obs.penalty).all():
+    routine = (obs.mode != _PLAY_ON) | obs.goalie | obs.penalty
+    if set_plays == "decided":
+        routine &= ~(decided_set_play(obs) & ~obs.goalie & ~obs.penalty)
+    if routine.all():
         n = len(obs)
         decisions = Decisions.of(*outside_open_play(
             obs, np.full(n, _GO_TO, np.int32), np.zeros(n, np.int32),
             np.zeros((n, 2), np.float32)))
     else:
-        decisions = skills_naive_decisions(obs)
+        decisions = skills_naive_decisions(obs, set_plays)
+    if guard is not None:
+        decisions, _ = guard.apply(obs, decisions)
     return to_player_actions(decisions, obs)
+
+
+@rowwise  # every row is decided on its own world model: nothing to gather
+def skills_naive(states: Sequence[Any]) -> list[Any]:
+    """The decision server's callable: the proxy's States of a cycle to its PlayerActions,
+    our set plays the proxy's ready behaviour."""
+    return _naive_answers(states, "routine")
+
+
+class SkillsNaive:
+    """``skills_naive`` deciding our set plays too (``set_plays="decided"``), within the
+    free-kick rule (``set_plays.TakerGuard``): the decision server's callable. Rowwise like
+    :func:`skills_naive`: the guard keeps each shirt's memory apart."""
+
+    def __init__(self) -> None:
+        self.guard = TakerGuard()
+        rowwise(self)
+
+    def reset(self) -> None:
+        self.guard.reset()
+
+    def __call__(self, states: Sequence[Any]) -> list[Any]:
+        return _naive_answers(states, "decided", self.guard)

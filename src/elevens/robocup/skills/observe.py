@@ -53,6 +53,7 @@ class Observation:
     offside_x: np.ndarray  # float32 [n]
     mode: np.ndarray  # int32 [n], the proxy's GameModeType
     our_set_play: np.ndarray  # bool [n]
+    last_kicker: np.ndarray  # int32 [n], shirt number if one of ours kicked last, else 0
     penalty: np.ndarray  # bool [n], penalty shoot-out modes
     cycle: np.ndarray  # int32 [n]
     stopped: np.ndarray  # int32 [n], cycles the clock has stood still
@@ -97,8 +98,8 @@ def observe(states: Sequence[Any]) -> Observation:
         "mate_reach": f(n, np.int32), "opp_reach": f(n, np.int32),
         "kickable_mate": f(n, bool), "kickable_opp": f(n, bool),
         "offside_x": f(n, np.float32), "mode": f(n, np.int32),
-        "our_set_play": f(n, bool), "penalty": f(n, bool), "cycle": f(n, np.int32),
-        "stopped": f(n, np.int32), "need_preprocess": f(n, bool),
+        "our_set_play": f(n, bool), "last_kicker": f(n, np.int32), "penalty": f(n, bool),
+        "cycle": f(n, np.int32), "stopped": f(n, np.int32), "need_preprocess": f(n, bool),
     }
     for i, state in enumerate(states):
         wm = state.world_model
@@ -140,6 +141,8 @@ def observe(states: Sequence[Any]) -> Observation:
         out["offside_x"][i] = wm.offside_line_x or 0.0
         out["mode"][i] = wm.game_mode_type or 0
         out["our_set_play"][i] = bool(wm.is_our_set_play)
+        ours = wm.last_kick_side is not None and wm.last_kick_side == wm.our_side
+        out["last_kicker"][i] = (wm.last_kicker_uniform_number or 0) if ours else 0
         out["penalty"][i] = bool(wm.is_penalty_kick_mode)
         out["cycle"][i] = wm.cycle or 0
         out["stopped"][i] = wm.stoped_cycle or 0

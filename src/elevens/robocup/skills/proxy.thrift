@@ -112,6 +112,8 @@ struct WorldModel {
   9: list<Player> opponents,
   14: i32 their_goalie_uniform_number,
   15: double offside_line_x,
+  19: Side last_kick_side,
+  20: i32 last_kicker_uniform_number,
   21: i32 cycle,
   22: GameModeType game_mode_type,
   25: bool is_our_set_play,

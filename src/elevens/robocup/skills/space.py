@@ -10,7 +10,9 @@ A decision is a kind with its argument, for ``n`` players at once (:class:`Decis
 - without it: ``INTERCEPT``, ``GO_TO`` ``point``, ``MARK`` opponent ``index`` (stand between
   them and our goal), ``TACKLE`` (towards their goal);
 - outside open play: ``KICKOFF_MOVE`` to ``point`` (the teleport allowed before a kick-off),
-  and the proxy's ready behaviours ``GOALIE``, ``SET_PLAY`` and ``PENALTY``.
+  and the proxy's ready behaviours ``GOALIE``, ``SET_PLAY`` and ``PENALTY``;
+- ``KICK`` the ball to ``point`` in kicks alone: a dribble of the player who takes our restart
+  (``restarts``: the server's free-kick rule forbids its dash-and-kick).
 
 :func:`to_player_actions` turns decisions into the proxy's ``PlayerActions``: the skill first,
 a fallback body skill after it (the proxy tries body entries in order), the neck turned to the
@@ -59,10 +61,13 @@ class Kind(enum.IntEnum):
     GOALIE = 9
     SET_PLAY = 10
     PENALTY = 11
+    KICK = 12
 
 
 #: Kinds of open play: elevens' own choice, every proxy reflex off.
 OPEN_PLAY = frozenset(range(Kind.SHOOT, Kind.TACKLE + 1))
+#: Kinds whose every proxy reflex is off: open play, the kick-off move, a restart's kick.
+_OURS = OPEN_PLAY | {Kind.KICKOFF_MOVE, Kind.KICK}
 #: Their goal's centre and half width (rcssserver's pitch and goal_width 14.02).
 GOAL = np.array([52.5, 0.0], np.float32)
 GOAL_HALF_WIDTH = 7.01
@@ -221,6 +226,9 @@ def _one(m: Any, obs: Observation, dec: Decisions, i: int) -> list[Any]:
         return [m.PlayerAction(helios_goalie=m.HeliosGoalie())]
     if kind == Kind.SET_PLAY:
         return [m.PlayerAction(helios_set_play=m.HeliosSetPlay())]
+    if kind == Kind.KICK:
+        speed = float(pass_speed(np.linalg.norm(point - pos)))
+        return [_kick(m, point, speed), _hold(m, obs, i), _neck(m)]
     return [m.PlayerAction(helios_penalty=m.HeliosPenalty())]
 
 
@@ -232,7 +240,7 @@ def to_player_actions(decisions: Decisions, obs: Observation) -> list[Any]:
     out = []
     for i in range(n):
         kind = int(decisions.kind[i])
-        ours = kind in OPEN_PLAY or kind == Kind.KICKOFF_MOVE
+        ours = kind in _OURS
         out.append(m.PlayerActions(
             actions=_one(m, obs, decisions, i),
             ignore_preprocess=kind == Kind.KICKOFF_MOVE,

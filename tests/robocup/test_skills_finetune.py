@@ -24,11 +24,12 @@ from elevens.robocup.skills.finetune import (
     make_skills_train_config,
     train_skills,
 )
-from elevens.robocup.skills.record import Recorder, pack
+from elevens.robocup.skills.observe import observe
+from elevens.robocup.skills.record import Recorder, pack, routine_played
 from elevens.robocup.skills.runtime import DecisionServer
 from elevens.train.learner import make_learner
 from tests.robocup.conftest import needs_rcssserver
-from tests.robocup.fake_proxy import FakeTeam, Scene
+from tests.robocup.fake_proxy import FakeTeam, Scene, state
 from tests.robocup.test_match import HELIOS, needs_helios, needs_proxy
 
 STEPS = 6
@@ -267,6 +268,15 @@ def test_the_host_loop_trains_on_matches_and_starts_a_fresh_one_when_one_ends(
     assert result.checkpoint is not None and result.checkpoint.exists()
 
 
+def test_a_team_deciding_its_set_plays_learns_from_ours_and_not_from_theirs() -> None:
+    shirts = (1, 5, 10)
+    ours = observe([state(Scene(mode=5, our_set_play=True, kickable=10), u) for u in shirts])
+    theirs = observe([state(Scene(mode=5), u) for u in shirts])
+    assert routine_played(ours).tolist() == [True] * 3
+    assert routine_played(ours, "decided").tolist() == [True, False, False]  # the goalie's
+    assert routine_played(theirs, "decided").tolist() == [True] * 3
+
+
 def test_bad_fine_tuning_commands_are_refused_in_one_line(
     capsys: pytest.CaptureFixture[str], tmp_path: Path,
 ) -> None:
@@ -277,6 +287,9 @@ def test_bad_fine_tuning_commands_are_refused_in_one_line(
          "server.opponent_cmd=None is invalid"),
         (["robocup", "train", "skills-11v11", "--server.hold-ms", "2000",
           "--server.opponent-cmd", "x"], "server.hold_ms=2000.0 is invalid"),
+        (["robocup", "train", "skills-11v11", "--server.set-plays", "own",
+          "--server.opponent-cmd", "x"],
+         "server.set_plays 'own' is invalid (allowed: routine, decided)"),
     ):
         with pytest.raises(SystemExit) as stop:
             main(argv)

@@ -41,6 +41,7 @@ from elevens.robocup.skills.observe import PLAYERS
 from elevens.robocup.skills.proxy import find_proxy, proxy_command
 from elevens.robocup.skills.record import Recorder, pack
 from elevens.robocup.skills.runtime import DecisionServer
+from elevens.robocup.skills.set_plays import check_set_plays
 from elevens.robocup.train import ROBOCUP_CONFIG_JSON, ROBOCUP_RUN
 from elevens.runs.layout import RunLayout
 from elevens.runs.loop import Collect, HostGames, TrainResult, train
@@ -93,6 +94,9 @@ class SkillsServerConfig:
     hold_ms: float = 500.0
     """Between iterations each decision waits this long first: the match crawls while the
     learner updates."""
+    set_plays: str = "routine"
+    """Our kick-offs, free kicks, kick-ins and corners: the proxy's ready behaviour
+    ("routine") or the policy's decisions, recorded and learned like open play ("decided")."""
 
     def __post_init__(self) -> None:
         if self.opponent_cmd is not None and not self.opponent_cmd.strip():
@@ -110,6 +114,7 @@ class SkillsServerConfig:
                 f"server.deadline_ms={self.deadline_ms!r} and server.gather_ms="
                 f"{self.gather_ms!r} are invalid: 0 < gather_ms < deadline_ms < {limit:g} (the "
                 "server's wait for its players each cycle)")
+        check_set_plays(self.set_plays, "server.set_plays")
         if not 0 <= self.hold_ms < self.deadline_ms:
             raise ValueError(f"server.hold_ms={self.hold_ms!r} is invalid: it must be from 0 "
                              f"to below server.deadline_ms={self.deadline_ms!r}")
@@ -271,7 +276,7 @@ class SkillGames:
             work = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="elevens-ft-")))
             for g in range(config.learner.games_per_iteration):
                 recorder = Recorder(learner.policy, seed=config.run.seed + g,
-                                    hold_s=server.hold_ms / 1e3)
+                                    hold_s=server.hold_ms / 1e3, set_plays=server.set_plays)
                 decision = stack.enter_context(DecisionServer(
                     recorder, players=PLAYERS, deadline_s=server.deadline_ms / 1e3,
                     gather_s=server.gather_ms / 1e3, on_default=recorder.defaulted))

@@ -40,6 +40,7 @@ from elevens.robocup.skills.learned import shirt_batches, sim_observation, skill
 from elevens.robocup.skills.naive import kick_off_points
 from elevens.robocup.skills.observe import PLAYERS, observe
 from elevens.robocup.skills.observe import Observation as SkillObservation
+from elevens.robocup.skills.set_plays import TakerGuard, check_set_plays, decided_set_play
 from elevens.robocup.skills.space import to_player_actions
 from elevens.robocup.skills.team import SKILLS_FIELD
 from elevens.teams.scripted import Field
@@ -56,12 +57,16 @@ _PLAY_ON = 2  # the proxy's GameModeType of open play
 Key = tuple[int, int, int]
 
 
-def routine_played(obs: SkillObservation) -> np.ndarray:
+def routine_played(obs: SkillObservation, set_plays: str = "routine") -> np.ndarray:
     """bool[m]: the rows whose player does not play the policy's decision: outside open play
-    (kick-off placing and set plays, ``naive.outside_open_play``), the goalie (the proxy's
-    goalie behaviour), penalties, and a proxy that runs its own perception fallbacks
-    (``need_preprocess``: they replace the action)."""
-    return ((np.asarray(obs.mode) != _PLAY_ON) | np.asarray(obs.goalie)
+    (kick-off placing and set plays, ``naive.outside_open_play``; with ``set_plays="decided"``
+    not our decided set plays), the goalie (the proxy's goalie behaviour), penalties, and a
+    proxy that runs its own perception fallbacks (``need_preprocess``: they replace the
+    action)."""
+    stopped = np.asarray(obs.mode) != _PLAY_ON
+    if set_plays == "decided":
+        stopped &= ~decided_set_play(obs)
+    return (stopped | np.asarray(obs.goalie)
             | np.asarray(obs.penalty) | np.asarray(obs.need_preprocess))
 
 
@@ -114,11 +119,17 @@ class Recorder:
     ``policy``: the learner's ``AttentionPolicy`` (4-value skill action); its params are set
     with :meth:`set_params` before the first decision. ``hold_s``: while not recording, each
     decision waits this long first (the match crawls while the learner updates; recording
-    resumes it at once). ``on_default`` is :meth:`defaulted`.
+    resumes it at once). ``on_default`` is :meth:`defaulted`. ``set_plays``: our set plays
+    the proxy's routine or the policy's decisions (``set_plays``; a decision the free-kick
+    rule changed is masked like a routine).
     """
 
     def __init__(self, policy: Any, *, seed: int = 0, field: Field = SKILLS_FIELD,
-                 episode_length: int = MATCH_CLOCK, hold_s: float = 0.0) -> None:
+                 episode_length: int = MATCH_CLOCK, hold_s: float = 0.0,
+                 set_plays: str = "routine") -> None:
+        check_set_plays(set_plays)
+        self.set_plays = set_plays
+        self.guard = TakerGuard()
         self.policy = policy
         self.field = field
         self.episode_length = episode_length
@@ -152,6 +163,7 @@ class Recorder:
             self.match += 1
             self.carry = self.policy.initial_carry((1, PLAYERS))
             self._asked = {}
+            self.guard.reset()
 
     def start(self) -> None:
         """Record every cycle that begins from now on."""
@@ -238,14 +250,18 @@ class Recorder:
             actions[rows] = np.asarray(act)[0, slot]
             pre_tanh[rows] = np.asarray(raw)[0, slot]
             log_prob[rows] = np.asarray(logp)[0, slot]
-        decisions = skill_decisions(obs, actions, np.asarray(view.entity_mask), self.field)
-        self._record(states, obs, view, pre_tanh, log_prob, before, match, unplaced)
+        decisions = skill_decisions(obs, actions, np.asarray(view.entity_mask), self.field,
+                                    self.set_plays)
+        changed = np.zeros(m, bool)
+        if self.set_plays == "decided":
+            decisions, changed = self.guard.apply(obs, decisions)
+        routine = routine_played(obs, self.set_plays) | unplaced | changed
+        self._record(states, obs, view, pre_tanh, log_prob, before, match, routine)
         return to_player_actions(decisions, obs)
 
     def _record(self, states: Sequence[Any], obs: SkillObservation, view: Observation,
                 pre_tanh: np.ndarray, log_prob: np.ndarray, before: list[Any],
-                match: int, unplaced: np.ndarray) -> None:
-        routine = routine_played(obs) | unplaced
+                match: int, routine: np.ndarray) -> None:
         with self._lock:
             if match != self.match:
                 return  # decided for a match that has ended

@@ -360,8 +360,11 @@ def test_set_plays_are_refused_in_one_line_unless_a_skills_team_decides_them() -
                                          r"routine, decided\)"):
         parse_team("skills_naive", None, "x", set_plays="own", set_plays_flag="--team0-set-plays")
     for spec, cmd in (("naive", None), (None, "start.sh -p {port}")):
-        with pytest.raises(ValueError, match="--set-plays 'decided' is for a skills team"):
+        with pytest.raises(ValueError, match="team 'naive' is not a skills team|--set-plays "
+                                             "'decided' is for a skills team"):
             parse_team(spec, cmd, "x", set_plays="decided")
+    with pytest.raises(ValueError, match="skills team 'runs/none@30' is unknown"):
+        parse_team("runs/none@30", None, "x", set_plays="decided")
 
 
 def test_match_refuses_a_skills_team_without_the_proxy_in_one_line(

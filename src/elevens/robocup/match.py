@@ -474,6 +474,9 @@ def parse_team(
     if spec in SKILLS or is_skills_team(spec):
         return SkillsTeam(spec, name, sample=sample, set_plays=set_plays)
     if set_plays != "routine":
+        from elevens.robocup.skills.learned import check_skills_team
+
+        check_skills_team(spec, sorted(SKILLS))  # a spec that does not load says why
         raise only_skills
     try:
         ChangeView(view)

@@ -10,6 +10,8 @@ cycle over Thrift. The modules:
 * :mod:`~elevens.robocup.skills.space` -- the decision space (kind + argument) and the proxy
   actions that carry it out.
 * :mod:`~elevens.robocup.skills.naive` -- ``skills_naive``, the scripted yardstick.
+* :mod:`~elevens.robocup.skills.set_plays` -- our set plays decided by the team itself, within
+  the server's free-kick rule (``--set-plays decided``).
 * :mod:`~elevens.robocup.skills.learned` -- a trained skills policy (a checkpoint of
   ``elevens train skills-2v2`` / ``skills-11v11``, or a team exported from one): the world
   model as the skill game's observations, the policy's action decoded as the game decodes it.

@@ -132,22 +132,30 @@ def test_a_team_deciding_its_set_plays_takes_the_kick_off_and_keeps_the_free_kic
     routine = skills_naive_decisions(obs)
     assert list(routine.kind) == [Kind.GOALIE, Kind.SET_PLAY, Kind.SET_PLAY]
     # Decided: the goalie keeps its routine; no teammate is ahead of the ball, so the taker
-    # dribbles, which a set play's taker may do only in kicks: a KICK to the dribble's end.
+    # passes back (open play passes forward only), as a kick-off is taken.
     decided = skills_naive_decisions(obs, "decided")
     assert decided.kind[0] == Kind.GOALIE and decided.kind[1] not in (Kind.SET_PLAY, Kind.KICK)
-    assert decided.kind[2] == Kind.DRIBBLE
+    assert decided.kind[2] == Kind.PASS
+    assert OURS[decided.index[2] - 1, 0] < obs.pos[2, 0] and decided.index[2] != 1
     answers = team(states)
-    kick = answers[2].actions[0].body_smart_kick
-    end = obs.pos[2] + DRIBBLE_LENGTH * DRIBBLE_DIRECTIONS[decided.index[2]]
-    assert (kick.target_point.x, kick.target_point.y) == pytest.approx(tuple(end), abs=1e-4)
-    assert kick.first_speed == pytest.approx(float(pass_speed(DRIBBLE_LENGTH)), rel=1e-5)
+    assert answers[2].actions[0].body_smart_kick is not None
     assert answers[2].ignore_doIntention and answers[1].ignore_doIntention
+    # A taker's dribble (here the guard's input) is kicks alone: a KICK to the dribble's end.
+    dribble = Decisions.of(np.array([Kind.DRIBBLE]), np.array([2]))
+    taking = observe([state(_kick_off(), 10)])
+    kicked, changed = team.guard.apply(taking, dribble)
+    end = taking.pos[0] + DRIBBLE_LENGTH * DRIBBLE_DIRECTIONS[2]
+    assert kicked.kind.tolist() == [Kind.KICK] and changed.tolist() == [True]
+    np.testing.assert_allclose(kicked.point[0], end, atol=1e-5)
+    kick = to_player_actions(kicked, taking)[0]
+    assert kick.actions[0].body_smart_kick.first_speed == pytest.approx(
+        float(pass_speed(DRIBBLE_LENGTH)), rel=1e-5)
+    assert kick.ignore_doIntention
     # Play on, the ball 8 m ahead and player 10 the last kicker: it may not run at the ball
     # (an intercept becomes a run to its slot); once another player kicks, it may.
-    ball = (float(end[0]), float(end[1]))
     ours = OURS.copy()
     ours[9] = (0.0, 0.0)
-    after = Scene(ours=ours, ball=ball, mode=2, last_kicker=10, cycle=2)
+    after = Scene(ours=ours, ball=(8.0, 0.0), mode=2, last_kicker=10, cycle=2)
     took = observe([state(after, 10)])
     assert skills_naive_decisions(took).kind[0] == Kind.INTERCEPT
     answer = team([state(after, 10)])[0]

@@ -107,8 +107,9 @@ def _shot_points(obs: Observation, xp: Any = np) -> Any:
     return targets[xp.argmax(clearance, axis=1)]
 
 
-def _best_pass(obs: Observation, xp: Any = np) -> tuple[Any, Any]:
-    """The receiver (shirt number, 0 when none is open) and whether one is."""
+def _best_pass(obs: Observation, any_way: Any, xp: Any = np) -> tuple[Any, Any]:
+    """The receiver (shirt number, 0 when none is open) and whether one is; forward only,
+    but for the rows of ``any_way`` (bool[n]) outside our third."""
     n = len(obs)
     receivers = obs.mates  # [n, 11, 2]
     dist = _norm(receivers - obs.pos[:, None], xp)
@@ -127,7 +128,7 @@ def _best_pass(obs: Observation, xp: Any = np) -> tuple[Any, Any]:
     safe = ~deep | ((gap >= SAFE_GAP) & (receivers[..., 0] - obs.pos[:, None, 0] >= 0.5 * across))
     ok = safe & (
         obs.mates_valid & ~me & (xp.arange(PLAYERS) > 0)[None]  # never back to the goalie
-        & (receivers[..., 0] > obs.pos[:, None, 0])  # forward
+        & ((receivers[..., 0] > obs.pos[:, None, 0]) | any_way[:, None])  # forward
         & (receivers[..., 0] < xp.maximum(obs.offside_x, 0.0)[:, None])  # onside
         & (dist >= PASS_MIN) & (dist <= PASS_MAX) & (gap >= OPEN_ENOUGH)
     )
@@ -242,7 +243,11 @@ def naive_choices(obs: Observation, xp: Any = np,
 
     # With it.
     if not host or obs.kickable.any():
-        receiver, can_pass = _best_pass(obs, xp)
+        # The taker of our decided set play passes any way (back, as a kick-off is taken):
+        # no dribble may follow its kick (set_plays).
+        taker = obs.kickable & (decided_set_play(obs, xp) if set_plays == "decided"
+                                else xp.zeros(n, bool))
+        receiver, can_pass = _best_pass(obs, taker, xp)
         direction, can_dribble = _dribble(obs, xp)
         shoot = obs.kickable & (_norm(xp.asarray(GOAL)[None] - obs.pos, xp) < SHOOT_RANGE)
         passing = obs.kickable & ~shoot & can_pass

@@ -113,11 +113,18 @@ class _DropFailedReads(logging.Filter):
 
     The other reads of a failed restore fail too; their tasks are never awaited, so asyncio logs
     each one (a traceback) when it is garbage-collected, possibly at exit, after the one line that
-    names the damage. Only tasks whose error names the damaged directory are dropped."""
+    names the damage. Only tasks whose error names the damaged directory are dropped. Filters of
+    one directory are equal, so a logger keeps one however often its restore fails."""
 
     def __init__(self, directory: Path) -> None:
         super().__init__()
-        self._names = {os.fspath(directory), os.fspath(Path(directory).absolute())}
+        self._names = frozenset({os.fspath(directory), os.fspath(Path(directory).absolute())})
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, _DropFailedReads) and other._names == self._names
+
+    def __hash__(self) -> int:
+        return hash(self._names)
 
     def filter(self, record: logging.LogRecord) -> bool:
         error = record.exc_info[1] if record.exc_info else None

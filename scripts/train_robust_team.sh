@@ -10,6 +10,8 @@
 # run sharing a busy machine gets the same compute; the process's CPU time says how much of a core
 # it had. Try 1 (docs/results/robustness.md) also randomised every game of both stages
 # (--env.randomize.enabled) and ended near 0.66 against naive; RANDOMIZE=1 randomises stage 2 as it did.
+# MIX="team=share ..." replaces the fixed opponents' shares (try 3: counter=0.10 and
+# elevens-11v11=0.25, the other panel teams 0.05 each).
 # The stage resumes with --resume, so re-running the script after an interruption goes on where
 # it stopped. One core (taskset -c CORE), niced, like the shipped team's recipe.
 #
@@ -21,8 +23,9 @@ elevens=${ELEVENS:-elevens}
 mkdir -p "$runs"
 
 resume_flag() { [ -d "$1/checkpoints" ] && echo --resume || true; }
-mix=(--opponent.mix man-marking=0.05 high-press=0.05 deep-block=0.05 long-ball=0.05
-     wing-play=0.05 counter=0.05 possession=0.05 elevens-11v11=0.0625)
+shares=${MIX:-man-marking=0.05 high-press=0.05 deep-block=0.05 long-ball=0.05 wing-play=0.05
+counter=0.05 possession=0.05 elevens-11v11=0.0625}
+read -r -a mix <<< "--opponent.mix $(echo $shares)"
 run() { nice -n 10 taskset -c "$core" "$elevens" train "$@"; }
 
 randomize=()

@@ -47,7 +47,7 @@ from elevens.robocup.skills.space import (
 
 __all__ = [
     "ATTACK_PUSH", "DEEPEST", "DEFEND_DROP", "FORMATION", "SHOOT_RANGE", "SLIDE",
-    "kick_off_points", "naive_choices", "outside_open_play",
+    "kick_off_points", "naive_choices", "outside_open_play", "routine_rows",
     "SkillsNaive", "skills_naive", "skills_naive_decisions", "slot_targets",
 ]
 
@@ -291,6 +291,15 @@ def outside_open_play(obs: Observation, kind: Any, index: Any, point: Any,
     return kind.astype(xp.int32), index.astype(xp.int32), point.astype(xp.float32)
 
 
+def routine_rows(obs: Observation, set_plays: str = "routine") -> np.ndarray:
+    """bool[n]: the rows :func:`outside_open_play` gives a routine whatever open play
+    decides: outside play on (but our decided set plays), the goalie, a penalty."""
+    stopped = np.asarray(obs.mode) != _PLAY_ON
+    if set_plays == "decided":
+        stopped &= ~decided_set_play(obs)
+    return stopped | np.asarray(obs.goalie) | np.asarray(obs.penalty)
+
+
 def skills_naive_decisions(obs: Observation, set_plays: str = "routine") -> Decisions:
     """The yardstick's decisions for every row of ``obs``."""
     return Decisions.of(*naive_choices(obs, np, set_plays))
@@ -303,10 +312,7 @@ def _naive_answers(states: Sequence[Any], set_plays: str,
     not decided: none of it reaches the answers (the routine's kind replaces it, the kick-off
     spot its point)."""
     obs = observe(states)
-    routine = (obs.mode != _PLAY_ON) | obs.goalie | obs.penalty
-    if set_plays == "decided":
-        routine &= ~(decided_set_play(obs) & ~obs.goalie & ~obs.penalty)
-    if routine.all():
+    if routine_rows(obs, set_plays).all():
         n = len(obs)
         decisions = Decisions.of(*outside_open_play(
             obs, np.full(n, _GO_TO, np.int32), np.zeros(n, np.int32),

@@ -37,10 +37,10 @@ from elevens.env.reward import reward_terms
 from elevens.env.state import GlobalState, Observation
 from elevens.robocup.rules import MATCH_CLOCK
 from elevens.robocup.skills.learned import shirt_batches, sim_observation, skill_decisions
-from elevens.robocup.skills.naive import kick_off_points
+from elevens.robocup.skills.naive import kick_off_points, routine_rows
 from elevens.robocup.skills.observe import PLAYERS, observe
 from elevens.robocup.skills.observe import Observation as SkillObservation
-from elevens.robocup.skills.set_plays import TakerGuard, check_set_plays, decided_set_play
+from elevens.robocup.skills.set_plays import TakerGuard, check_set_plays
 from elevens.robocup.skills.space import to_player_actions
 from elevens.robocup.skills.team import SKILLS_FIELD
 from elevens.teams.scripted import Field
@@ -48,7 +48,6 @@ from elevens.train.rollout import Rollout, StepRecord, collected
 
 __all__ = ["Recorder", "Segment", "pack", "routine_played"]
 
-_PLAY_ON = 2  # the proxy's GameModeType of open play
 # (match, server cycle, the player's request within that cycle): one step of one match. The
 # clock stands before a kick-off while each player still asks once a cycle; librcsc's
 # stopped-cycle count differs between players that connected at different times, and so does
@@ -63,11 +62,7 @@ def routine_played(obs: SkillObservation, set_plays: str = "routine") -> np.ndar
     not our decided set plays), the goalie (the proxy's goalie behaviour), penalties, and a
     proxy that runs its own perception fallbacks (``need_preprocess``: they replace the
     action)."""
-    stopped = np.asarray(obs.mode) != _PLAY_ON
-    if set_plays == "decided":
-        stopped &= ~decided_set_play(obs)
-    return (stopped | np.asarray(obs.goalie)
-            | np.asarray(obs.penalty) | np.asarray(obs.need_preprocess))
+    return routine_rows(obs, set_plays) | np.asarray(obs.need_preprocess)
 
 
 def _finite(obs: SkillObservation) -> tuple[SkillObservation, np.ndarray]:

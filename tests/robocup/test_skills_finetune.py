@@ -25,9 +25,11 @@ from elevens.robocup.skills.finetune import (
     train_skills,
 )
 from elevens.robocup.skills.observe import observe
-from elevens.robocup.skills.record import Recorder, pack, routine_played
+from elevens.robocup.skills.record import Recorder, pack, routine_played, teacher_actions
 from elevens.robocup.skills.runtime import DecisionServer
+from elevens.robocup.skills.team import SkillsNaiveTeam
 from elevens.train.learner import make_learner
+from elevens.train.rollout import Teacher
 from tests.robocup.conftest import needs_rcssserver
 from tests.robocup.fake_proxy import FakeTeam, Scene, state
 from tests.robocup.test_match import HELIOS, needs_helios, needs_proxy
@@ -146,6 +148,21 @@ def test_server_cycles_pack_into_the_learners_rollout(tmp_path: Path) -> None:
                                              jnp.zeros((1, 11), bool))
         return carry, output.distribution().log_prob(pre_tanh)
 
+    # With a teacher (ppo.teacher): its action on every recorded observation, as it plays
+    # each cycle's observations itself; the rest of the rollout is unchanged.
+    teacher = SkillsNaiveTeam()
+    taught, _ = pack([segment], STEPS, learner.policy, games.params, shaping=False,
+                     teacher=teacher_actions(Teacher(teacher, None)), key=jax.random.key(3))
+    action = np.asarray(taught.transitions.teacher_action)
+    assert action.shape == (11, STEPS, 4)
+    for step in range(STEPS):
+        played = teacher.play(jax.tree.map(lambda leaf, step=step: leaf[:, step], t.obs))
+        np.testing.assert_allclose(action[:, step], np.asarray(played), atol=1e-6)
+    assert len(np.unique(action[..., 0].round(3))) > 1  # not one kind for everyone
+    np.testing.assert_array_equal(np.asarray(taught.transitions.reward), reward)
+    np.testing.assert_array_equal(np.asarray(taught.scripted), scripted)
+    assert t.teacher_action is None
+
     carry = jax.tree.map(lambda leaf: leaf[None], t.initial_carry)
     for step in range(STEPS):
         obs = jax.tree.map(lambda leaf, step=step: leaf[None, :, step], t.obs)
@@ -250,7 +267,9 @@ def test_the_host_loop_trains_on_matches_and_starts_a_fresh_one_when_one_ends(
     monkeypatch.setattr(finetune, "ServerMatch", _FakeMatch)
     monkeypatch.setattr(finetune, "find_proxy", lambda folder: tmp_path)
     _FakeMatch.started = []
-    config = _config(tmp_path, **{"run.iterations": 2, "server.hold_ms": 0.0})
+    # Taught by skills_naive (ppo.teacher): its actions recorded on the server's states.
+    config = _config(tmp_path, **{"run.iterations": 2, "server.hold_ms": 0.0,
+                                  "ppo.teacher": "skills_naive", "ppo.teacher_balance": True})
     result = train_skills(config, progress=False)
     assert result.iteration == 2 and result.env_steps == 2 * STEPS
     # 2 x 7 cycles recorded from matches of 10 cycles: the first ended while the learner
@@ -265,6 +284,10 @@ def test_the_host_loop_trains_on_matches_and_starts_a_fresh_one_when_one_ends(
     # The learner's improve ran on both packed rollouts.
     losses = _metric(tmp_path / "run", "train/loss")
     assert len(losses) == 2 and np.isfinite(losses).all()
+    assert _metric(tmp_path / "run", "train/teacher_weight") == [1.0, 1.0]
+    agreement = _metric(tmp_path / "run", "train/teacher_agreement")
+    assert len(agreement) == 2 and all(0 <= a <= 1 for a in agreement)
+    assert np.isfinite(_metric(tmp_path / "run", "train/teacher_log_prob")).all()
     assert result.checkpoint is not None and result.checkpoint.exists()
 
 
@@ -290,6 +313,10 @@ def test_bad_fine_tuning_commands_are_refused_in_one_line(
         (["robocup", "train", "skills-11v11", "--server.set-plays", "own",
           "--server.opponent-cmd", "x"],
          "server.set_plays 'own' is invalid (allowed: routine, decided)"),
+        (["robocup", "train", "skills-11v11", "--opponent.mix", "skills_naive=0.25",
+          "--server.opponent-cmd", "x"], "opponent.mix=('skills_naive=0.25',) is invalid"),
+        (["robocup", "train", "skills-11v11", "--ppo.teacher", "nobody", "--run.run-dir",
+          str(tmp_path / "run"), "--server.opponent-cmd", "x"], "ppo.teacher team 'nobody'"),
     ):
         with pytest.raises(SystemExit) as stop:
             main(argv)

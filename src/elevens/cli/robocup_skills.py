@@ -130,6 +130,12 @@ def skills_train(args: RoboCupSkillsTrainArgs) -> None:
     name = f"elevens robocup train {PRESET}: error"
     try:  # bad input first, before the server and the proxy are looked for
         args.config.validate()
+        learner = args.config.learner
+        if learner.ppo.teacher:  # its name, before anything compiles or starts
+            from elevens.runs.teams import team_on_field
+
+            team_on_field(learner.ppo.teacher, learner.env.game, "ppo.teacher").check_size(
+                learner.players_per_team, learner.network.actions)
     except ValueError as error:
         exit_with_error(name, error, 2)
     find_proxy(args.config.server.proxy)

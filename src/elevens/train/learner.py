@@ -303,6 +303,9 @@ def update_batch(
         entropy_noise=maybe(entropy_noise),
         policy_mask=policy_played(setup, data),
     )
+    if teacher_weight is not None and t.teacher_action is None:
+        raise ValueError(f"ppo.teacher={setup.config.ppo.teacher!r}: the rollout has no "
+                         "teacher's actions (Transition.teacher_action) to learn from")
     if t.teacher_action is not None:
         if teacher_weight is None:
             raise ValueError("the rollout has the teacher's actions: pass teacher_weight")
@@ -497,6 +500,7 @@ def make_learner(
     *,
     devices: int = 0,
     external_games: bool = False,
+    external_teacher: bool = False,
 ) -> Learner:
     """Build the pure functions of ``config`` training in the game ``env`` (the caller's, built
     once from the config: ``config.make_env()``) on ``devices`` (``parallel.data_mesh``: 0 =
@@ -505,7 +509,9 @@ def make_learner(
     teams of ``opponent.mix``; a config with such teams needs it. ``external_games``: the
     caller plays the games outside the compiled unroll and calls only ``improve``, so the
     policy may give any action size the caller's game takes (``network.actions``), not only
-    ``env``'s.
+    ``env``'s. ``external_teacher``: that caller also records ``ppo.teacher``'s actions on
+    its players' observations in the rollouts it gives (``Transition.teacher_action``); the
+    team is loaded here (``Learner.setup.teacher``) for it to act.
 
     They are cached on their arguments (a game is equal to another built alike): building the
     same learner again in one process (a resume, a longer run, another run directory) reuses
@@ -513,7 +519,7 @@ def make_learner(
     """
     validate_training(config)
     _check_game(config, env, external_games)
-    if config.ppo.teacher and external_games:
+    if config.ppo.teacher and external_games and not external_teacher:
         raise ValueError(
             f"ppo.teacher={config.ppo.teacher!r} is invalid when the games are played outside "
             "the simulator: the teacher acts beside the learner in the compiled unroll; leave "

@@ -8,7 +8,10 @@ and a decision server whose ``decide`` is a ``record.Recorder`` sampling the lea
 policy. An iteration records ``env.episode_length`` cycles of every game at once (the games
 run in parallel, each on its own server), packs them into the ``Rollout`` the compiled unroll
 returns (``record.pack``) and hands it to ``elevens.runs.loop.train``'s ``HostGames``: the
-learner's ``improve``, logs, checkpoints, resume and time budget are the simulator's.
+learner's ``improve``, logs, checkpoints, resume and time budget are the simulator's. With
+``--ppo.teacher`` (e.g. ``skills_naive``) the teacher acts on every recorded observation
+(``record.teacher_actions``) and its term pulls the policy towards it on the server's own
+states (DAgger's correction of imitation's drift), where the policy played.
 
 The match goes on across iterations: while the learner updates, each decision waits
 ``server.hold_ms`` first, so the match crawls (the server waits up to 1.25 s a cycle for its
@@ -39,12 +42,13 @@ from elevens.robocup.skills.decode import SKILL_ACTION_SIZE
 from elevens.robocup.skills.game import skills_config, skills_field
 from elevens.robocup.skills.observe import PLAYERS
 from elevens.robocup.skills.proxy import find_proxy, proxy_command
-from elevens.robocup.skills.record import Recorder, pack
+from elevens.robocup.skills.record import Recorder, pack, teacher_actions
 from elevens.robocup.skills.runtime import DecisionServer
 from elevens.robocup.skills.set_plays import check_set_plays
 from elevens.robocup.train import ROBOCUP_CONFIG_JSON, ROBOCUP_RUN
 from elevens.runs.layout import RunLayout
 from elevens.runs.loop import Collect, HostGames, TrainResult, train
+from elevens.runs.teams import team_on_field
 from elevens.train.config import LearnerConfig, RunConfig, TrainConfig, apply_overrides, validate
 from elevens.train.learner import Learner, TrainState, make_learner
 
@@ -151,8 +155,12 @@ class SkillsTrainConfig:
     def validate(self) -> SkillsTrainConfig:
         """``elevens.train.config.validate`` on the learner and run, and what only the
         server's skills team can play; ValueError naming the field."""
-        validate(self.train_config())
         learner, env = self.learner, self.learner.env
+        if learner.opponent.mix:
+            raise ValueError(f"opponent.mix={learner.opponent.mix!r} is invalid in elevens "
+                             f"robocup train {PRESET}: the server's opponent is "
+                             "--server.opponent-cmd's team; leave it out")
+        validate(self.train_config())
         if getattr(env, "physics", None) != "skills" or learner.network.actions != (
                 SKILL_ACTION_SIZE):
             raise ValueError(
@@ -269,6 +277,8 @@ class SkillGames:
         written = json.dumps(dataclasses.asdict(config), indent=2)
         (layout.root / ROBOCUP_CONFIG_JSON).write_text(written, encoding="utf-8")
         self.policy = learner.policy
+        teacher = learner.setup.teacher
+        self.teacher = None if teacher is None else teacher_actions(teacher)
         with contextlib.ExitStack() as stack, layout.episodes_csv.open(
                 "a", newline="", encoding="utf-8") as self.csv:
             if self.csv.tell() == 0:
@@ -318,7 +328,8 @@ class SkillGames:
         segments = [recorder.stop() for recorder, _, _ in self.games]
         played = time.perf_counter()
         rollout, counts = pack(segments, steps, self.policy, self.params,
-                               shaping=bool(state.shaping.active))
+                               shaping=bool(state.shaping.active), teacher=self.teacher,
+                               key=jax.random.fold_in(key, len(self.games)))
         writer, iteration = csv.writer(self.csv), int(state.iteration) + 1
         for g, c in enumerate(counts):
             writer.writerow((iteration, g, self.games[g][0].match, c["goals_for"],
@@ -350,8 +361,9 @@ def train_skills(config: SkillsTrainConfig, *, resume: bool = False,
     config.validate()
     games = SkillGames(config)
     host = HostGames(
-        make_learner=lambda learner, env: make_learner(learner, env, devices=1,
-                                                       external_games=True),
+        make_learner=lambda learner, env: make_learner(
+            learner, env, team_on_field, devices=1, external_games=True,
+            external_teacher=True),
         open=games.open,
     )
     result = train(config.train_config(), resume=resume, progress=progress, host=host)

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import dataclasses
 import threading
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import jax
@@ -35,6 +35,7 @@ import numpy as np
 from elevens.env.params import EnvParams
 from elevens.env.reward import reward_terms
 from elevens.env.state import GlobalState, Observation
+from elevens.play import PolicyActor
 from elevens.robocup.rules import MATCH_CLOCK
 from elevens.robocup.skills.learned import shirt_batches, sim_observation, skill_decisions
 from elevens.robocup.skills.naive import kick_off_points, routine_rows
@@ -44,9 +45,9 @@ from elevens.robocup.skills.set_plays import TakerGuard, check_set_plays
 from elevens.robocup.skills.space import to_player_actions
 from elevens.robocup.skills.team import SKILLS_FIELD
 from elevens.teams.scripted import Field
-from elevens.train.rollout import Rollout, StepRecord, collected
+from elevens.train.rollout import Rollout, StepRecord, Teacher, collected
 
-__all__ = ["Recorder", "Segment", "pack", "routine_played"]
+__all__ = ["Recorder", "Segment", "pack", "routine_played", "teacher_actions"]
 
 # (match, server cycle, the player's request within that cycle): one step of one match. The
 # clock stands before a kick-off while each player still asks once a cycle; librcsc's
@@ -434,15 +435,40 @@ def _game(segment: Segment, steps: int, params: EnvParams, field: Field,
     return leaves, counts
 
 
+def teacher_actions(teacher: Teacher) -> Callable[[Observation, jax.Array], jax.Array]:
+    """A jitted ``(obs [T, G, n], key) -> f32[T, G, n, A]``: ``teacher`` (``ppo.teacher``'s
+    team) acting on the recorded cycles' observations in turn, as it acts beside the learner
+    in the simulator's unroll; a network teacher's memory starts fresh each segment."""
+    actor = PolicyActor(teacher.policy, teacher.params)
+
+    @jax.jit
+    def act(obs: Observation, key: jax.Array) -> jax.Array:
+        steps, games = obs.self_features.shape[:2]
+
+        def step(carry: Any, x: tuple[Observation, jax.Array]) -> tuple[Any, jax.Array]:
+            carry, actions, _ = actor.act(carry, x[0], jnp.zeros(games, bool), x[1])
+            return carry, jnp.asarray(actions, jnp.float32)
+
+        carry = actor.init_carry(games, PLAYERS)
+        return jax.lax.scan(step, carry, (obs, jax.random.split(key, steps)))[1]
+
+    return act
+
+
 def pack(segments: Sequence[Segment], steps: int, policy: Any, params: EnvParams, *,
-         shaping: bool, field: Field = SKILLS_FIELD) -> tuple[Rollout, list[dict[str, int]]]:
+         shaping: bool, field: Field = SKILLS_FIELD,
+         teacher: Callable[[Observation, jax.Array], jax.Array] | None = None,
+         key: jax.Array | None = None) -> tuple[Rollout, list[dict[str, int]]]:
     """The first ``steps`` cycles of every game's segment as the learner's ``Rollout``
     (``G * 11`` player sequences of ``steps``), and each game's counts: goals for and
     against, steps a routine played, requests defaulted, steps filled in, matches.
     ``params``: the skill game's EnvParams (goal reward, shaping weights); ``shaping``:
     whether the shaping is in force (``TrainState.shaping.active``). Each player's memory
     before its first recorded decision starts its sequence (the match goes on across
-    segments); a new match within a segment ends one episode and starts the next."""
+    segments); a new match within a segment ends one episode and starts the next.
+    ``teacher`` (``teacher_actions``) with its ``key``: its actions on every step go into
+    ``Transition.teacher_action`` for the teacher loss (which counts only where the policy
+    played)."""
     games = [_game(segment, steps, params, field, shaping) for segment in segments]
     history = StepRecord(**jax.tree.map(lambda *x: np.stack(x, axis=1),
                                         *[leaves for leaves, _ in games]))
@@ -456,4 +482,8 @@ def pack(segments: Sequence[Segment], steps: int, policy: Any, params: EnvParams
     goals_against = jnp.asarray([c["goals_against"] for c in counts], jnp.int32)
     side = jnp.zeros(len(segments), jnp.int32)
     history = jax.tree.map(jnp.asarray, history)
+    if teacher is not None:
+        if key is None:
+            raise ValueError("pack: a teacher acts with a key; pass key")
+        history = history.replace(teacher_action=teacher(history.obs, key))
     return collected(history, goals_for, goals_against, side, initial_carry, PLAYERS), counts

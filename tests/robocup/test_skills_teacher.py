@@ -1,21 +1,28 @@
 """skills_naive teaches the learned skills team in the simulator's skill game (ppo.teacher):
-its (kind, pointer, x, y) are scored by the parametrised head, pointer slot for pointer slot."""
+its (kind, pointer, x, y) are scored by the parametrised head, pointer slot for pointer slot;
+with the kind mask (network.kind_mask='ball') a player chooses the ball kinds exactly when the
+ball is at its feet."""
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 from typing import Any
 
 import jax
 import numpy as np
 
 import elevens.robocup  # noqa: F401 - registers the skill game and its teams
+from elevens.env.state import ENTITY_FEATURES
 from elevens.nets.policy import AttentionPolicy
 from elevens.robocup.skills.game import skills_config
+from elevens.robocup.skills.team import SKILLS_FIELD, ball_kind_mask, skill_observation
 from elevens.runs.teams import team_on_field
 from elevens.train.learner import make_learner
 from elevens.train.ppo import teacher_terms
 from elevens.train.rollout import Teacher, rollout
 
+DISTANCE = ENTITY_FEATURES.index("distance")
 TINY = {
     "env.episode_length": 8, "games_per_iteration": 2, "network.features": 16,
     "network.num_heads": 2, "network.lstm_features": 8, "network.lstm_layers": 1,
@@ -60,3 +67,40 @@ def test_skills_naive_teaches_in_the_skill_game() -> None:
     assert np.all(np.isfinite(log_prob)) and -60.0 < log_prob.mean() < 0.0, log_prob.mean()
     agreement = np.asarray(terms.agreement)
     assert set(np.unique(agreement)) <= {0.0, 1.0}
+
+    # The same policy with the skill game's kind mask (network.kind_mask='ball'; no parameter
+    # of its own): player 0 of game 0 gets the ball at its feet at step 5 and loses sight of it
+    # at step 6. With the ball only the ball kinds have probability, without it only the
+    # others; the teacher's term leaves out exactly the entries whose kind is ruled out.
+    masked = dataclasses.replace(config.learner.network, kind_mask="ball").policy()
+    t = data.transitions
+    reach = 0.5 / (2.0 * SKILLS_FIELD.half_length)
+    obs = t.obs.replace(
+        entities=t.obs.entities.at[0, 5, -1, DISTANCE].set(reach),
+        entity_mask=t.obs.entity_mask.at[0, 5, -1].set(True).at[0, 6, -1].set(False),
+    )
+    _, output = jax.jit(functools.partial(masked.apply, time_axis=1,
+                                          method=AttentionPolicy.unroll))(
+        state.params.policy, t.initial_carry, obs, t.reset)
+    distribution = output.distribution()
+    allowed = np.asarray(ball_kind_mask(obs))  # [G * n, T, K]
+    assert allowed[0, 5].tolist() == [True] * 4 + [False] * 4
+    assert allowed[0, 6].tolist() == [False] * 4 + [True] * 4
+    assert allowed.any(-1).all() and (allowed[..., :4] != allowed[..., 4:]).all()
+    # Where the ball is seen, the mask's reach is the teacher's view's (skill_observation).
+    view, _ = skill_observation(jax.tree.map(lambda leaf: leaf[0:2, 5], obs), SKILLS_FIELD)
+    assert np.asarray(view.kickable).tolist() == allowed[0:2, 5, 0].tolist()
+    p = np.exp(np.asarray(jax.nn.log_softmax(distribution.kind_logits, axis=-1)))
+    assert np.all(p[~allowed] == 0.0) and np.allclose(p.sum(-1), 1.0)
+    assert allowed[np.arange(4)[:, None], np.arange(8), np.asarray(distribution.mode())[..., 0]
+                   .astype(int)].all()
+    terms = teacher_terms(distribution, t.teacher_action)
+    kind = recorded[..., 0].astype(int)
+    ruled_in = np.take_along_axis(allowed, kind[..., None], axis=-1)[..., 0]
+    np.testing.assert_array_equal(np.asarray(terms.mask), ruled_in)
+    assert np.all(np.isfinite(np.asarray(terms.log_prob)[ruled_in]))
+    # Unmasked, the same params give every kind some probability.
+    unmasked = np.exp(np.asarray(jax.nn.log_softmax(
+        learner.policy.apply(state.params.policy, t.initial_carry, obs, t.reset, 1,
+                             method=AttentionPolicy.unroll)[1].kind_logits, axis=-1)))
+    assert np.all(unmasked > 0.0)

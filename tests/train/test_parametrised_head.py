@@ -40,6 +40,11 @@ HEAD = {"network.head": "parametrised", "network.kinds": 3, "network.actions": 4
         ({**HEAD, "network.use_attention": False},
          r"^network.use_attention=False is invalid with network.head='parametrised'"),
         ({"network.kinds": 4}, r"^network.kinds=4 is invalid with network.head='gaussian'"),
+        ({**HEAD, "network.kind_mask": "nope"},
+         r"^network.kind_mask='nope' is invalid: allowed values are '' \(every kind\) and the "
+         r"masks of the games known"),
+        ({"network.kind_mask": "ball"},
+         r"^network.kind_mask='ball' is invalid with network.head='gaussian'"),
         ({"network.actions": 5}, r"^network.actions=5 is invalid: it must be 2 \(move, rot\), 4 "
          r"\(a parametrised action: kind, pointer, x, y\) or 12 "),
     ],
@@ -55,7 +60,7 @@ def test_the_head_is_saved_and_a_config_without_it_reads_as_gaussian() -> None:
     again = TrainConfig.from_json(config.to_json())
     assert again == config and again.learner.network.policy().kinds == 3
     saved = make_config("quickstart").to_dict()
-    for name in ("head", "kinds"):
+    for name in ("head", "kinds", "kind_mask"):
         del saved["learner"]["network"][name]
     with warnings.catch_warnings():
         warnings.simplefilter("error")

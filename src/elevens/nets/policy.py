@@ -41,7 +41,7 @@ FLOPs) on the whole ``[T, ...]`` sequence as one large batch, and scans only the
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any, NamedTuple
 
 import flax.linen as nn
@@ -239,6 +239,17 @@ def visible_capacity_index(obs: Observation, capacities: Sequence[Capacity]) -> 
     return jnp.sum(jnp.stack([*misses, jnp.zeros((), bool)]).astype(jnp.int32))
 
 
+KIND_MASKS: dict[str, Callable[[Observation], jax.Array]] = {}
+"""Named functions ``Observation [...] -> bool[..., K]``: the kinds each player may choose
+(at least one), for ``AttentionPolicy.kind_mask``; a game registers its own
+(``register_kind_mask``)."""
+
+
+def register_kind_mask(name: str, mask: Callable[[Observation], jax.Array]) -> None:
+    """Make ``mask`` known as ``network.kind_mask=name`` (idempotent)."""
+    KIND_MASKS[name] = mask
+
+
 class AttentionPolicy(nn.Module):
     """The policy of one player; leading axes of the inputs are free (players, games, time).
 
@@ -268,6 +279,9 @@ class AttentionPolicy(nn.Module):
     kinds: int = 0
     """0: the tanh-Gaussian head over ``num_actions`` values. K >= 1: the parametrised head
     with K kinds (needs attention, and ``num_actions`` 4)."""
+    kind_mask: str = ""
+    """The parametrised head only: a name of ``KIND_MASKS``, whose function of the observation
+    says which kinds each player may choose (the others get ``MASKED_LOGIT``); '': every kind."""
 
     def setup(self) -> None:
         if self.kinds and (not self.use_attention or self.num_actions != PARAMETRISED_ACTIONS):
@@ -382,8 +396,11 @@ class AttentionPolicy(nn.Module):
         pointer_logits = jnp.einsum("...kf,...pf->...kp", query, keys) / math.sqrt(self.features)
         in_view = obs.entity_mask[..., : obs.entity_mask.shape[-1] - 1]
         target = self.target_head(y).reshape(*lead, kinds, 4)
+        kind_logits = self.kind_head(y)
+        if self.kind_mask:
+            kind_logits = jnp.where(KIND_MASKS[self.kind_mask](obs), kind_logits, MASKED_LOGIT)
         return ParametrisedOutput(
-            kind_logits=self.kind_head(y),
+            kind_logits=kind_logits,
             pointer_logits=jnp.where(in_view[..., None, :], pointer_logits, MASKED_LOGIT),
             pointer_mask=in_view,
             mean=target[..., :2],

@@ -162,6 +162,7 @@ PARAMETRISED_ACTIONS = 4
 # without a warning.
 _SILENT_DEFAULTS = (
     "learner.network.actions", "learner.network.head", "learner.network.kinds",
+    "learner.network.kind_mask",
     "learner.env.physics", "learner.env.see_period",
     "learner.env.stamina", "learner.env.goalie", "learner.env.game.possession_shaping_weight",
     "learner.env.game.possession_radius", "learner.env.game.possession_by",
@@ -200,6 +201,10 @@ class NetworkConfig:
     ``actions`` 4, ``kinds`` and attention."""
     kinds: int = 0
     """The parametrised head's number of kinds K (>= 1); 0 with the Gaussian head."""
+    kind_mask: str = ""
+    """The parametrised head: which kinds a player may choose in each situation, a mask its game
+    registers (``nets.policy.KIND_MASKS``; the skill game's 'ball': the ball kinds with the
+    ball within kicking reach, the others without); '': every kind, always."""
 
     def policy(self) -> Any:
         """The ``AttentionPolicy`` module of this config."""
@@ -214,6 +219,7 @@ class NetworkConfig:
             use_lstm=self.use_lstm,
             num_actions=self.actions,
             kinds=self.kinds if self.head == "parametrised" else 0,
+            kind_mask=self.kind_mask if self.head == "parametrised" else "",
         )
 
     def critic(self) -> Any:
@@ -1054,7 +1060,20 @@ def _validate_network(network: NetworkConfig) -> None:
             "network.head='parametrised': its pointer attends over the attention encoder's "
             "per-entity embeddings",
         )
+        if network.kind_mask:
+            from elevens.nets.policy import KIND_MASKS
+
+            _require(
+                network.kind_mask in KIND_MASKS,
+                f"network.kind_mask={network.kind_mask!r} is invalid: allowed values are '' "
+                f"(every kind) and the masks of the games known: {sorted(KIND_MASKS)}",
+            )
     else:
+        _require(
+            network.kind_mask == "",
+            f"network.kind_mask={network.kind_mask!r} is invalid with network.head='gaussian': "
+            "it masks the parametrised head's kinds (leave it '')",
+        )
         _require(
             network.kinds == 0,
             f"network.kinds={network.kinds!r} is invalid with network.head='gaussian': kinds "

@@ -32,6 +32,7 @@ from jax.typing import ArrayLike
 from elevens.env.state import GlobalState, Observation
 from elevens.nets.attention import Capacity
 from elevens.nets.critic import AttentionCritic
+from elevens.nets.distributions import MASKED_LOGIT
 from elevens.nets.policy import AttentionPolicy, PolicyCarry
 
 PyTree = Any
@@ -512,7 +513,8 @@ class TeacherTerms(NamedTuple):
     """log pi(teacher's action), differentiable in the distribution's params."""
     mask: jax.Array | None
     """bool[...] where the teacher's action counts: where the policy played (``played``), and
-    not where the parametrised head's teacher points at no slot in the policy's view
+    not where the parametrised head's teacher points at no slot in the policy's view or plays
+    a kind the policy's kind mask rules out
     (probability 0: log pi would be -1e9); None: everywhere."""
     agreement: jax.Array | None
     """Parametrised head: 1 where the policy's likeliest kind is the teacher's."""
@@ -541,10 +543,13 @@ def teacher_terms(
         slots = jnp.arange(distribution.pointer_mask.shape[-1])
         pointer = action[..., 1].astype(jnp.int32)[..., None]
         seen = jnp.any(distribution.pointer_mask & (slots == pointer), axis=-1)
-        mask = _both(seen | ~jnp.any(distribution.pointer_mask, axis=-1), played)
-        assert mask is not None
         kinds = distribution.kind_logits.shape[-1]
         kind = jnp.clip(action[..., 0].astype(jnp.int32), 0, kinds - 1)
+        # A kind the policy's kind mask rules out here (network.kind_mask) has probability 0.
+        allowed = jnp.take_along_axis(distribution.kind_logits, kind[..., None], axis=-1)[
+            ..., 0] > MASKED_LOGIT / 2
+        mask = _both((seen | ~jnp.any(distribution.pointer_mask, axis=-1)) & allowed, played)
+        assert mask is not None
         likeliest = jnp.argmax(jax.lax.stop_gradient(distribution.kind_logits), axis=-1)
         log_prob = distribution.log_prob_of_action(clipped)
         if balance:

@@ -25,6 +25,7 @@ import numpy as np
 from elevens.env.params import EnvParams
 from elevens.env.physics import team_signs
 from elevens.env.state import State
+from elevens.nets.policy import register_kind_mask
 from elevens.robocup.bodies import (
     TACKLE,
     Commands,
@@ -43,7 +44,12 @@ from elevens.robocup.skills.decode import (
     decode,
     shirt_numbers,
 )
-from elevens.robocup.skills.team import SkillsNaiveTeam, SkillsRandomTeam, random_actions
+from elevens.robocup.skills.team import (
+    SkillsNaiveTeam,
+    SkillsRandomTeam,
+    ball_kind_mask,
+    random_actions,
+)
 from elevens.teams.registry import register_team
 from elevens.train.config import (
     EnvConfig,
@@ -264,6 +270,7 @@ def register() -> None:
     register_game(SkillsEnvConfig)
     register_team("skills_naive", SkillsNaiveTeam())
     register_team("skills_random", SkillsRandomTeam())
+    register_kind_mask("ball", ball_kind_mask)
     for preset in ("2v2", "11v11"):
         register_preset(
             f"skills-{preset}",

@@ -37,12 +37,26 @@ from elevens.robocup.skills.observe import Observation as SkillObservation
 from elevens.robocup.skills.space import Kind
 from elevens.teams.scripted import Field
 
-__all__ = ["SkillsNaiveTeam", "SkillsRandomTeam", "random_actions", "skill_observation"]
+__all__ = [
+    "SkillsNaiveTeam", "SkillsRandomTeam", "ball_kind_mask", "random_actions", "skill_observation",
+]
 
 SKILLS_FIELD = Field.of(rcss_field())
 _S = {name: i for i, name in enumerate(SELF_FEATURES)}
 _E = {name: i for i, name in enumerate(ENTITY_FEATURES)}
 _PLAY_ON = 2
+
+
+def ball_kind_mask(obs: Observation, field: Field = SKILLS_FIELD,
+                   params: Any = DEFAULT) -> jax.Array:
+    """Observation [...] -> bool[..., OPEN_KINDS], ``network.kind_mask='ball'``: a player that
+    sees the ball within its kicking reach (as ``skill_observation`` places it) may choose the
+    ball kinds only (SHOOT, PASS, DRIBBLE, HOLD), any other player the rest only (the decode
+    plays a ball kind without the ball as INTERCEPT anyway): the policy can neither walk away
+    from a ball at its feet nor spend probability on kinds it cannot play."""
+    distance = obs.entities[..., -1, _E["distance"]] * (2.0 * field.half_length)
+    kickable = obs.entity_mask[..., -1] & (distance <= params.kickable_distance)
+    return kickable[..., None] == (jnp.arange(OPEN_KINDS) <= Kind.HOLD)
 
 
 def _slot_tables(n: int) -> tuple[np.ndarray, np.ndarray]:

@@ -7,17 +7,22 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+from pathlib import Path
 from typing import Any
 
 import jax
 import numpy as np
+import pytest
 
 import elevens.robocup  # noqa: F401 - registers the skill game and its teams
 from elevens.env.state import ENTITY_FEATURES
 from elevens.nets.policy import AttentionPolicy
 from elevens.robocup.skills.game import skills_config
 from elevens.robocup.skills.team import SKILLS_FIELD, ball_kind_mask, skill_observation
+from elevens.runs.errors import RunRefusedError
+from elevens.runs.resume import load_start_params
 from elevens.runs.teams import team_on_field
+from elevens.train.checkpoint import Checkpointer
 from elevens.train.learner import make_learner
 from elevens.train.ppo import teacher_terms
 from elevens.train.rollout import Teacher, rollout
@@ -104,3 +109,19 @@ def test_skills_naive_teaches_in_the_skill_game() -> None:
         learner.policy.apply(state.params.policy, t.initial_carry, obs, t.reset, 1,
                              method=AttentionPolicy.unroll)[1].kind_logits, axis=-1)))
     assert np.all(unmasked > 0.0)
+
+
+def test_a_run_with_the_kind_mask_starts_from_networks_without_it(tmp_path: Path) -> None:
+    net = {name: value for name, value in TINY.items() if name.startswith("network.")}
+    source = skills_config("2v2", **net)
+    state = make_learner(source.learner, source.learner.make_env()).init(jax.random.key(3))
+    with Checkpointer(tmp_path / "source" / "checkpoints") as checkpointer:
+        checkpointer.save(0, state, source.to_dict(), {"iteration": 0})
+    masked = skills_config("2v2", **net, **{"network.kind_mask": "ball"})
+    _, params = load_start_params(str(tmp_path / "source"), masked)
+    for a, b in zip(jax.tree.leaves(params), jax.tree.leaves(state.params), strict=True):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    wider = skills_config("2v2", **{**net, "network.features": 24, "network.kind_mask": "ball"})
+    with pytest.raises(RunRefusedError, match=r"other networks.*--network.features 16 "
+                                              r"\(this run: 24\)$"):
+        load_start_params(str(tmp_path / "source"), wider)

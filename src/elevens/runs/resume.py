@@ -62,15 +62,17 @@ def resume_line(run_dir: Path, iteration: int, env_steps: int, train_seconds: fl
 def load_start_params(text: str, config: TrainConfig) -> tuple[TrainConfig, LearnerParams]:
     """``load_learner_params(text)``, refused (``RunRefusedError``, listing the fields) unless
     its networks are ``config``'s. The team size may differ: the networks read entity slots,
-    so a 2 v 2 team starts an 11 v 11 run (and the other way round)."""
+    so a 2 v 2 team starts an 11 v 11 run (and the other way round); so may the kind mask
+    (``network.kind_mask``: no parameter of its own)."""
     source, params = load_learner_params(text)
     network = config.learner.network
-    if source.learner.network != network:
+    if dataclasses.replace(source.learner.network, kind_mask=network.kind_mask) != network:
         differences = [
             f"--network.{name.replace('_', '-')} {getattr(source.learner.network, name)!r} "
             f"(this run: {getattr(network, name)!r})"
             for name in (field.name for field in dataclasses.fields(network))
-            if getattr(source.learner.network, name) != getattr(network, name)
+            if name != "kind_mask" and getattr(source.learner.network, name) != getattr(
+                network, name)
         ]
         raise RunRefusedError(
             f"run.init_from={text!r} has other networks than this run; pass "

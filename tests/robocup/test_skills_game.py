@@ -261,7 +261,8 @@ def test_jit_equals_eager_and_vmap_equals_one_game_at_a_time() -> None:
     for a, b in zip(jax.tree.leaves(eager), jax.tree.leaves(jitted), strict=True):
         np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-5, atol=1e-5)
     keys = jax.random.split(jax.random.key(8), 3)
-    starts, _ = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
+    # Compiled: the batch's starts are set-up (eager JAX would compile each op of the reset).
+    starts, _ = jax.jit(jax.vmap(env.reset, in_axes=(0, None)))(keys, params)
     batch = env.sample_actions(jax.random.key(9), (3,))
     stepped = jax.jit(jax.vmap(env.step, in_axes=(0, 0, 0, None)))(keys, starts, batch, params)
     for g in range(3):

@@ -47,27 +47,33 @@ def test_training_against_naive_beats_naive_more_often(tmp_path: Path) -> None:
 
 
 def test_self_play_and_fixed_teams_share_the_games_and_are_reported_apart() -> None:
+    # A trained team in the mix too, and a run's shorter last chunk (1 iteration; K is 2),
+    # compiled for the learner at hand: the trained team's params must not stop that. One
+    # compile for both checks (the shorter scan's; the chunk's iteration is the same).
     config = tiny_config(
         **{
             "opponent.kind": "league",
             "opponent.league_every": 1,
-            "opponent.mix": ("self=0.5", "naive=0.25", "random=0.25"),
+            "opponent.mix": ("self=0.5", "naive=0.25", "elevens-2v2=0.25"),
         }
     )
-    assert opponent_mix(config.learner) == [("self", 32), ("naive", 16), ("random", 16)]
+    assert opponent_mix(config.learner) == [("self", 32), ("naive", 16), ("elevens-2v2", 16)]
+    assert config.learner.iterations_per_chunk == 2
     trainer = make_learner(config.learner, config.learner.make_env(), team_on_field)
     state = trainer.init(jax.random.key(0))
     assert state.opponent.indices.shape == (32,)  # league snapshots for self-play games only
-    state, metrics = trainer.update_chunk(state)
+    state, metrics = trainer.update(state, 1)
+    assert int(state.iteration) == 1
     outcomes = {k: np.asarray(v) for k, v in metrics.items() if k.endswith("/outcome")}
     assert set(outcomes) == {"opponent/self/outcome", "opponent/naive/outcome",
-                             "opponent/random/outcome"}
+                             "opponent/elevens-2v2/outcome"}
+    assert all(outcome.shape == (1,) for outcome in outcomes.values())
     # The mean over all games is the games-weighted mean of the three.
     mean = (2 * outcomes["opponent/self/outcome"] + outcomes["opponent/naive/outcome"]
-            + outcomes["opponent/random/outcome"]) / 4
+            + outcomes["opponent/elevens-2v2/outcome"]) / 4
     np.testing.assert_allclose(np.asarray(metrics["train/mean_score"]), mean, rtol=1e-6)
-    # Every league record is from self-play: 2 iterations x 32 games.
-    assert int(np.sum(np.asarray(state.opponent.league.result_count))) == 2 * 32
+    # Every league record is from self-play: 1 iteration x 32 games (not all 64).
+    assert int(np.sum(np.asarray(state.opponent.league.result_count))) == 32
 
 
 @pytest.mark.parametrize(
@@ -112,14 +118,3 @@ def test_evaluation_tracks_a_trained_team_and_refuses_an_unknown_one(tmp_path: P
     with pytest.raises(ValueError, match="run.eval_teams team 'runs/none': team spec"):
         train(tiny_config(tmp_path / "run", **{"run.eval_teams": ("naive", "runs/none")}))
     assert not (tmp_path / "run").exists()
-
-
-def test_a_shorter_last_chunk_trains_against_a_trained_team_in_the_mix() -> None:
-    # A run whose iterations are not a multiple of K ends on a shorter scan, compiled for the
-    # learner at hand: a trained team's params in the mix must not stop that.
-    config = tiny_config(**{"opponent.mix": ("elevens-2v2=0.25",)})
-    learner = make_learner(config.learner, config.learner.make_env(), team_on_field)
-    state = learner.init(jax.random.key(0))
-    state, metrics = learner.update(state, 1)  # K is 2
-    assert int(state.iteration) == 1
-    assert np.asarray(metrics["opponent/elevens-2v2/outcome"]).shape == (1,)

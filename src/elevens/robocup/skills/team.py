@@ -38,7 +38,8 @@ from elevens.robocup.skills.space import Kind
 from elevens.teams.scripted import Field
 
 __all__ = [
-    "SkillsNaiveTeam", "SkillsRandomTeam", "ball_kind_mask", "random_actions", "skill_observation",
+    "SkillsNaiveTeam", "SkillsRandomTeam", "ball_kind_mask", "nearest_kind_mask", "random_actions",
+    "skill_observation",
 ]
 
 SKILLS_FIELD = Field.of(rcss_field())
@@ -57,6 +58,34 @@ def ball_kind_mask(obs: Observation, field: Field = SKILLS_FIELD,
     distance = obs.entities[..., -1, _E["distance"]] * (2.0 * field.half_length)
     kickable = obs.entity_mask[..., -1] & (distance <= params.kickable_distance)
     return kickable[..., None] == (jnp.arange(OPEN_KINDS) <= Kind.HOLD)
+
+
+def nearest_kind_mask(obs: Observation, field: Field = SKILLS_FIELD,
+                      params: Any = DEFAULT) -> jax.Array:
+    """``network.kind_mask='ball_nearest'``: ``ball_kind_mask``, and without the ball in reach
+    the player nearest the ball of its team (as it sees itself and its teammates) may only run
+    at it (INTERCEPT, TACKLE), any other only take a place (GO_TO, MARK): who goes to the ball
+    is the rule's (by distance, where ``skills_naive`` reads librcsc's intercept table), what
+    each player does in its group the policy's."""
+    e, seen = obs.entities, obs.entity_mask
+    scale = 2.0 * field.half_length
+
+    def where(slot: Any) -> jax.Array:  # [..., k, 2] in the player's heading frame
+        d = e[..., slot, _E["distance"]] * scale
+        return d[..., None] * jnp.stack(
+            [e[..., slot, _E["cos_bearing"]], e[..., slot, _E["sin_bearing"]]], axis=-1)
+
+    n = e.shape[-2] // 2
+    ball = where(slice(-1, None))  # [..., 1, 2]
+    mates = where(slice(0, n - 1))  # [..., n - 1, 2]
+    mate_gap = jnp.sqrt(jnp.sum((mates - ball) ** 2, axis=-1))
+    mate_gap = jnp.where(seen[..., : n - 1], mate_gap, jnp.inf)
+    own_gap = e[..., -1, _E["distance"]] * scale
+    nearest = seen[..., -1] & (own_gap <= jnp.min(mate_gap, axis=-1, initial=jnp.inf))
+    runs = (jnp.arange(OPEN_KINDS) == Kind.INTERCEPT) | (jnp.arange(OPEN_KINDS) == Kind.TACKLE)
+    off_ball = jnp.where(nearest[..., None], runs, ~runs & (jnp.arange(OPEN_KINDS) > Kind.HOLD))
+    ball_mask = ball_kind_mask(obs, field, params)
+    return jnp.where(ball_mask[..., :1], ball_mask, off_ball)
 
 
 def _slot_tables(n: int) -> tuple[np.ndarray, np.ndarray]:

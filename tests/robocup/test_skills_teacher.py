@@ -11,14 +11,20 @@ from pathlib import Path
 from typing import Any
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
 import elevens.robocup  # noqa: F401 - registers the skill game and its teams
-from elevens.env.state import ENTITY_FEATURES
+from elevens.env.state import ENTITY_FEATURES, SELF_FEATURES, Observation
 from elevens.nets.policy import AttentionPolicy
 from elevens.robocup.skills.game import skills_config
-from elevens.robocup.skills.team import SKILLS_FIELD, ball_kind_mask, skill_observation
+from elevens.robocup.skills.team import (
+    SKILLS_FIELD,
+    ball_kind_mask,
+    nearest_kind_mask,
+    skill_observation,
+)
 from elevens.runs.errors import RunRefusedError
 from elevens.runs.resume import load_start_params
 from elevens.runs.teams import team_on_field
@@ -125,3 +131,36 @@ def test_a_run_with_the_kind_mask_starts_from_networks_without_it(tmp_path: Path
     with pytest.raises(RunRefusedError, match=r"other networks.*--network.features 16 "
                                               r"\(this run: 24\)$"):
         load_start_params(str(tmp_path / "source"), wider)
+
+
+def test_the_nearest_mask_sends_the_player_nearest_the_ball_and_places_the_rest() -> None:
+    # Five 2 v 2 observers (slots: the teammate, two opponents, the ball), distances in metres
+    # and bearings from each one's heading.
+    scale = 2.0 * SKILLS_FIELD.half_length
+
+    def observer(ball: tuple[float, float] | None, mate: tuple[float, float],
+                 mate_seen: bool = True) -> Any:
+        entities = np.zeros((4, len(ENTITY_FEATURES)), np.float32)
+        seen = np.array([mate_seen, False, False, ball is not None])
+        for slot, (d, angle) in ((0, mate), (3, ball or (0.0, 0.0))):
+            entities[slot, DISTANCE] = d / scale
+            entities[slot, ENTITY_FEATURES.index("cos_bearing")] = np.cos(angle)
+            entities[slot, ENTITY_FEATURES.index("sin_bearing")] = np.sin(angle)
+        return entities, seen
+
+    cases = [
+        observer((3.0, 0.0), (10.0, np.pi / 2)),  # its mate 10.4 m from the ball: it runs
+        observer((0.5, 0.0), (10.0, 0.0)),  # the ball at its feet: the ball kinds
+        observer((3.0, 0.0), (2.5, 0.0)),  # its mate 0.5 m from the ball: it takes a place
+        observer((3.0, 0.0), (3.0, 0.1), mate_seen=False),  # a mate out of view does not count
+        observer(None, (10.0, 0.0)),  # no ball in view: a place
+    ]
+    obs = Observation(
+        self_features=jnp.zeros((5, len(SELF_FEATURES))),
+        entities=jnp.asarray(np.stack([c[0] for c in cases])),
+        entity_mask=jnp.asarray(np.stack([c[1] for c in cases])),
+    )
+    ball, run, place = [True] * 4 + [False] * 4, [False] * 4 + [True, False, False, True], (
+        [False] * 5 + [True, True, False])
+    assert np.asarray(nearest_kind_mask(obs)).tolist() == [run, ball, place, run, place]
+    assert np.asarray(ball_kind_mask(obs))[:, 0].tolist() == [False, True, False, False, False]

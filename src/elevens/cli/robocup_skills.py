@@ -130,12 +130,10 @@ def skills_train(args: RoboCupSkillsTrainArgs) -> None:
     name = f"elevens robocup train {PRESET}: error"
     try:  # bad input first, before the server and the proxy are looked for
         args.config.validate()
-        learner = args.config.learner
-        if learner.ppo.teacher:  # its name, before anything compiles or starts
-            from elevens.runs.teams import team_on_field
+        from elevens.runs.teams import team_on_field
+        from elevens.train.learner import check_teacher
 
-            team_on_field(learner.ppo.teacher, learner.env.game, "ppo.teacher").check_size(
-                learner.players_per_team, learner.network.actions)
+        check_teacher(args.config.learner, team_on_field)  # before anything compiles or starts
     except ValueError as error:
         exit_with_error(name, error, 2)
     find_proxy(args.config.server.proxy)

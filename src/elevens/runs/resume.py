@@ -66,14 +66,13 @@ def load_start_params(text: str, config: TrainConfig) -> tuple[TrainConfig, Lear
     (``network.kind_mask``: no parameter of its own)."""
     source, params = load_learner_params(text)
     network = config.learner.network
-    if dataclasses.replace(source.learner.network, kind_mask=network.kind_mask) != network:
-        differences = [
-            f"--network.{name.replace('_', '-')} {getattr(source.learner.network, name)!r} "
-            f"(this run: {getattr(network, name)!r})"
-            for name in (field.name for field in dataclasses.fields(network))
-            if name != "kind_mask" and getattr(source.learner.network, name) != getattr(
-                network, name)
-        ]
+    differences = [
+        f"--network.{name.replace('_', '-')} {getattr(source.learner.network, name)!r} "
+        f"(this run: {getattr(network, name)!r})"
+        for name in (field.name for field in dataclasses.fields(network))
+        if name != "kind_mask" and getattr(source.learner.network, name) != getattr(network, name)
+    ]
+    if differences:
         raise RunRefusedError(
             f"run.init_from={text!r} has other networks than this run; pass "
             + ", ".join(differences)

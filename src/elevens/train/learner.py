@@ -705,6 +705,14 @@ def _fixed_opponents(
     return tuple(fixed)
 
 
+def check_teacher(config: LearnerConfig, load_team: TeamLoader) -> None:
+    """ValueError naming ``ppo.teacher`` unless its team loads and plays ``config``'s game (the
+    learner's own check, for a caller that refuses bad input before it starts anything)."""
+    if config.ppo.teacher:
+        _teacher(config.ppo.teacher, config.players_per_team, config.make_env().actions,
+                 config.env.game, load_team)
+
+
 def _teacher(
     spec: str, players_per_team: int, actions: int, env_params: EnvParams, load_team: TeamLoader,
 ) -> Teacher:

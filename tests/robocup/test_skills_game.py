@@ -521,6 +521,35 @@ def test_skills_naive_plays_its_own_decisions_in_the_simulator() -> None:
     np.testing.assert_allclose(np.asarray(view.pos), np.asarray(start.positions[:2]), atol=1e-3)
 
 
+def test_two_players_on_one_ball_do_not_stall_the_game() -> None:
+    # Before skills_naive cleared a contested ball, two opponents with it in reach and every
+    # path blocked both held it, each kicking it to its far side, and it lay still between
+    # them (here for 156 cycles in a row; in other games 100 to 200 of 300 cycles).
+    env = SkillSoccer(11)
+    params = env.default_params(episode_length=400)
+    team = SkillsNaiveTeam()
+    reach = env.body.kickable_distance
+
+    def body(carry: tuple[State, Any], key: jax.Array) -> tuple[tuple[State, Any], jax.Array]:
+        current, obs = carry
+        actions = jnp.stack([team.play(obs.team(0)), team.play(obs.team(1))])
+        after, obs, _, _, _ = env.step(key, current, actions, params)
+        gap = jnp.linalg.norm(after.positions - after.ball_position, axis=-1)
+        both = jnp.any(gap[:11] <= reach) & jnp.any(gap[11:] <= reach)
+        return (after, obs), both & (jnp.linalg.norm(after.ball_velocity) < 0.05)
+
+    @jax.jit
+    def game(key: jax.Array) -> jax.Array:
+        start, obs = env.reset(key, params)
+        return jax.lax.scan(body, (start, obs), jax.random.split(key, 300))[1]
+
+    for seed in range(3):
+        still = np.asarray(game(jax.random.key(seed)))
+        longest = max((len(run) for run in "".join("1" if x else "0" for x in still).split("0")),
+                      default=0)
+        assert longest < 20, (seed, longest)
+
+
 def test_skills_naive_beats_random_in_the_skill_game() -> None:
     from elevens.eval.match import play_match
     from elevens.robocup.skills.team import SkillsRandomTeam

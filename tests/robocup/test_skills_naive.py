@@ -80,6 +80,18 @@ def test_holds_when_every_forward_path_is_blocked() -> None:
     assert (hold.kick_target_point.x, hold.kick_target_point.y) == pytest.approx((1.6, 0.0))
 
 
+def test_clears_at_their_goal_when_blocked_and_an_opponent_can_kick_the_ball_too() -> None:
+    # Two holders of one ball kick it to either side of it: it stays between them.
+    theirs = FAR_OPPONENTS.copy()
+    for k, angle in enumerate((0, 45, 90, -90, -45)):
+        a = np.radians(angle)
+        theirs[1 + k] = (1.6 * np.cos(a), 1.6 * np.sin(a))
+    scene = dataclasses.replace(_holder_scene((0.0, 0.0), theirs), kickable_opponent=True)
+    obs, dec = _decide(scene, 6)
+    assert dec.kind[0] == Kind.SHOOT
+    assert dec.point[0][0] == pytest.approx(52.5)
+
+
 def test_shoots_near_goal_away_from_the_goalie() -> None:
     theirs = FAR_OPPONENTS.copy()
     theirs[0] = (50.0, 3.0)

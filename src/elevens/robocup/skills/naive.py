@@ -6,7 +6,9 @@ In open play (vectorised over every deciding player, one call a cycle):
   of the goal mouth farthest (in angle) from every opponent; else passes forward to the most
   open teammate (widest gap between the passing lane and any opponent, onside, 4 to 35 m
   away); else dribbles in the direction of the eight nearest the goal whose path is clear;
-  when every forward path is blocked by an opponent at arm's length, it holds. From our
+  when every forward path is blocked by an opponent at arm's length, it holds, unless an
+  opponent can kick the ball too: then it clears it at their goal as a shot is kicked (two
+  holders kick the ball to either side of it and it stays between them). From our
   third a pass needs a wider lane (:data:`SAFE_GAP`) and never goes across our box;
 - otherwise the player who reaches the ball first by librcsc's intercept table intercepts,
   unless a teammate already has it; one with a good chance tackles an opponent who has it;
@@ -249,10 +251,12 @@ def naive_choices(obs: Observation, xp: Any = np,
                                 else xp.zeros(n, bool))
         receiver, can_pass = _best_pass(obs, taker, xp)
         direction, can_dribble = _dribble(obs, xp)
-        shoot = obs.kickable & (_norm(xp.asarray(GOAL)[None] - obs.pos, xp) < SHOOT_RANGE)
+        blocked = ~can_pass & ~can_dribble
+        shoot = obs.kickable & ((_norm(xp.asarray(GOAL)[None] - obs.pos, xp) < SHOOT_RANGE)
+                                | (blocked & obs.kickable_opp))
         passing = obs.kickable & ~shoot & can_pass
         dribble = obs.kickable & ~shoot & ~can_pass & can_dribble
-        hold = obs.kickable & ~shoot & ~can_pass & ~can_dribble
+        hold = obs.kickable & ~shoot & blocked
         kind, point = put(shoot, _SHOOT, kind), put(shoot, _shot_points(obs, xp), point)
         kind, index, point = (put(passing, _PASS, kind), put(passing, receiver, index),
                               put(passing, 0.0, point))

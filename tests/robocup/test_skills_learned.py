@@ -26,6 +26,8 @@ from elevens.robocup.skills.observe import Observation as SkillObservation
 from elevens.robocup.skills.observe import observe
 from elevens.robocup.skills.space import Kind
 from elevens.robocup.skills.team import SKILLS_FIELD, skill_observation
+from elevens.train.checkpoint import Checkpointer
+from elevens.train.learner import make_learner
 from tests.refusal import refused
 from tests.robocup.conftest import needs_rcssserver
 from tests.robocup.fake_proxy import FakeTeam, Scene, state
@@ -84,6 +86,41 @@ def test_the_world_models_arrays_give_back_the_skill_games_observation() -> None
         assert not np.any(back.self_features[:, moves])
         assert np.any(np.asarray(sim.self_features)[:, moves])
         assert not np.any(back.entities[..., approximated_entity])
+
+
+def test_a_team_trained_with_reach_features_reads_librcscs_intercept_table(
+        tmp_path: Path, trained: Path) -> None:
+    # In the server the table is librcsc's; here the skill game's own (the view skills_naive
+    # reads), so the converted features equal the game's.
+    params, current, _ = _moving(11)
+    sim = SkillSoccer(11, reach=True).observe(current, params).team(0)
+    leaves = {k: np.asarray(v) for k, v in jax.jit(
+        lambda o: vars(skill_observation(o, SKILLS_FIELD)[0]))(sim).items()}
+    arrays = SkillObservation(**{**leaves, "cycle": np.full(11, int(current.step))})
+    back = sim_observation(arrays, episode_length=params.episode_length, reach=True)
+    assert back.self_features.shape == sim.self_features.shape == (11, len(SELF_FEATURES) + 3)
+    np.testing.assert_allclose(back.self_features[:, -3:], np.asarray(sim.self_features)[:, -3:],
+                               atol=1e-6)
+    assert len(np.unique(back.self_features[:, -3:])) > 2
+    # A checkpoint trained so decides the proxy's cycle with the table (one per metre here).
+    config = skills_config("2v2", **{**TINY, "run.run_dir": str(tmp_path),
+                                     "env.reach_features": True})
+    state0 = make_learner(config.learner, config.learner.make_env()).init(jax.random.key(3))
+    with Checkpointer(tmp_path / "checkpoints") as checkpointer:
+        checkpointer.save(0, state0, config.to_dict(), {"iteration": 0})
+    decide = skills_policy(str(tmp_path))
+    assert isinstance(decide, LearnedSkills) and decide.reach
+    assert len(decide(_states())) == 11
+    # In the simulator's tournament it plays a team trained without the table: the game gives
+    # the table, and that team reads the features before it.
+    from elevens.cli.eval import _teams_and_env
+    from elevens.eval.match import play_match
+
+    (teams,), env, game = _teams_and_env(((str(tmp_path), str(trained)),), 2, 4, True, 1)
+    assert env.reach and [t.policy.self_features for t in teams] == [18, 15]
+    result = play_match(env, game, teams[0].policy, teams[1].policy, jax.random.key(0), 2,
+                        teams[0].params, teams[1].params)
+    assert np.asarray(result.outcome).shape == (2,)
 
 
 def test_slots_the_world_model_does_not_place_are_masked_and_zero() -> None:

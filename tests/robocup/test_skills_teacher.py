@@ -133,6 +133,35 @@ def test_a_run_with_the_kind_mask_starts_from_networks_without_it(tmp_path: Path
         load_start_params(str(tmp_path / "source"), wider)
 
 
+def test_a_run_with_reach_features_starts_from_networks_without_them(tmp_path: Path) -> None:
+    net = {name: value for name, value in TINY.items() if name.startswith("network.")}
+    source = skills_config("2v2", **net)
+    env = source.learner.make_env()
+    state = make_learner(source.learner, env).init(jax.random.key(3))
+    with Checkpointer(tmp_path / "source" / "checkpoints") as checkpointer:
+        checkpointer.save(0, state, source.to_dict(), {"iteration": 0})
+    reach = skills_config("2v2", **net, **{"env.reach_features": True})
+    _, params = load_start_params(str(tmp_path / "source"), reach)
+    kernel = params.policy["params"]["encode_ff"]["hidden"]["kernel"]
+    before = state.params.policy["params"]["encode_ff"]["hidden"]["kernel"]
+    assert kernel.shape == (len(SELF_FEATURES) + 3, before.shape[1])
+    # The new inputs' weights start at zero: the policy decides what it decided.
+    reach_env = reach.learner.make_env()
+    game = reach_env.default_params(episode_length=50)
+    start, _ = reach_env.reset(jax.random.key(1), game)
+    for t in range(20):  # the ball rolling, the players moved: the table is not all zeros
+        start, *_ = reach_env.step(jax.random.key(t), start, reach_env.sample_actions(
+            jax.random.key(t + 50)), game)
+    grown, plain = reach_env.observe(start, game).team(0), env.observe(start, game).team(0)
+    assert np.asarray(grown.self_features[:, -3:]).any()
+    policy = source.learner.network.policy()
+    carry, reset = policy.initial_carry((2,)), jnp.zeros(2, bool)
+    a = policy.apply(params.policy, carry, grown, reset)
+    b = policy.apply(state.params.policy, carry, plain, reset)
+    np.testing.assert_allclose(np.asarray(a[1].kind_logits), np.asarray(b[1].kind_logits),
+                               atol=1e-5)
+
+
 def test_the_nearest_mask_sends_the_player_nearest_the_ball_and_places_the_rest() -> None:
     # Five 2 v 2 observers (slots: the teammate, two opponents, the ball), distances in metres
     # and bearings from each one's heading.

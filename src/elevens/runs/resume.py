@@ -14,7 +14,7 @@ from typing import Any
 from elevens.runs.errors import RunRefusedError
 from elevens.runs.layout import DAMAGED_DIR
 from elevens.runs.lock import lock_run_directory
-from elevens.runs.teams import load_learner_params
+from elevens.runs.teams import load_learner_params, train_state_shape
 from elevens.train import parallel
 from elevens.train.config import TrainConfig, config_differences
 from elevens.train.learner import LearnerParams
@@ -77,7 +77,32 @@ def load_start_params(text: str, config: TrainConfig) -> tuple[TrainConfig, Lear
             f"run.init_from={text!r} has other networks than this run; pass "
             + ", ".join(differences)
         )
-    return source, params
+    return source, _grown_inputs(params, train_state_shape(config).params, text)
+
+
+def _grown_inputs(params: LearnerParams, target: Any, text: str) -> LearnerParams:
+    """``params`` shaped as ``target`` (abstract LearnerParams of this run) where this run's
+    game gives more input features at the end of an observation part (a skill game's
+    ``env.reach_features``): a kernel whose input axis grew gains zero rows, so the networks
+    compute what they computed and learn the new inputs' weights. Any other shape difference
+    is a ``RunRefusedError`` naming the parameter."""
+    import jax
+    import jax.numpy as jnp
+
+    def grown(path: Any, leaf: Any, want: Any) -> Any:
+        have = tuple(leaf.shape)
+        if have == tuple(want.shape):
+            return leaf
+        if len(have) == 2 and have[1] == want.shape[1] and have[0] < want.shape[0]:
+            return jnp.concatenate([leaf, jnp.zeros((want.shape[0] - have[0], have[1]),
+                                                    leaf.dtype)])
+        raise RunRefusedError(
+            f"run.init_from={text!r}: parameter {jax.tree_util.keystr(path)} has shape {have}, "
+            f"this run's {tuple(want.shape)}: its game's observation differs other than by "
+            "features added at the end"
+        )
+
+    return jax.tree_util.tree_map_with_path(grown, params, target)
 
 
 def check_resumable(checkpointer: Any, config: TrainConfig, step: int | None = None) -> None:

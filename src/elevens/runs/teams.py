@@ -125,12 +125,12 @@ def _checkpoint_directory(path: Path) -> tuple[Path, int | None]:
     return path, None
 
 
-def _policy_target(policy: Any, players_per_team: int) -> Any:
-    """Abstract ``{"params": ...}`` of ``policy`` (shapes only: nothing is computed)."""
-    import elevens
-
-    env, params = elevens.make(f"{players_per_team}v{players_per_team}")
-    _, obs = jax.eval_shape(env.reset, jax.random.key(0), params)
+def _policy_target(policy: Any, config: Any) -> Any:
+    """Abstract ``{"params": ...}`` of ``policy`` in ``config``'s game (shapes only: nothing is
+    computed)."""
+    players_per_team = config.learner.players_per_team
+    env = config.learner.make_env()
+    _, obs = jax.eval_shape(env.reset, jax.random.key(0), env.default_params())
     team_obs = jax.tree.map(lambda leaf: jax.ShapeDtypeStruct(leaf.shape[1:], leaf.dtype), obs)
     return jax.eval_shape(
         policy.init,
@@ -205,7 +205,7 @@ def _open_checkpoint(path: Path, iteration: int | None) -> tuple[Any, int, Any]:
     return checkpointer, step, config
 
 
-def _train_state_shape(config: Any) -> Any:
+def train_state_shape(config: Any) -> Any:
     """The abstract TrainState ``config`` builds (shapes only: nothing is computed). Shapes do
     not depend on the devices a run used, so one device serves any checkpoint."""
     from elevens.train.learner import train_state_shape
@@ -215,13 +215,13 @@ def _train_state_shape(config: Any) -> Any:
 
 def _restore_train_state(checkpointer: Any, step: int, config: Any) -> Any:
     """The TrainState saved at ``step``, restored into the shapes ``config`` builds."""
-    state, _, _ = checkpointer.restore(_train_state_shape(config), step)
+    state, _, _ = checkpointer.restore(train_state_shape(config), step)
     return state
 
 
 def _intact_train_state_step(checkpointer: Any, before: int, config: Any) -> int | None:
     """The newest step before ``before`` whose TrainState restores, or None."""
-    return cast(int | None, checkpointer.last_intact_step(_train_state_shape(config), before))
+    return cast(int | None, checkpointer.last_intact_step(train_state_shape(config), before))
 
 
 def _network_team(config: Any, deterministic: bool | None) -> TeamPolicy:
@@ -233,7 +233,7 @@ def _network_team(config: Any, deterministic: bool | None) -> TeamPolicy:
         deterministic = bool(config.run.eval_deterministic)
     return NetworkTeam(
         policy=config.learner.network.policy(), deterministic=deterministic,
-        name=NETWORK_TEAM_NAME,
+        name=NETWORK_TEAM_NAME, self_features=config.learner.env.self_features,
     )
 
 
@@ -255,7 +255,6 @@ def _load_checkpoint(
     checkpointer, step, config = _open_checkpoint(path, iteration)
     try:
         policy = config.learner.network.policy()
-        players = config.learner.players_per_team
         errors = []
         policy_params = None
         try:
@@ -264,7 +263,7 @@ def _load_checkpoint(
             errors.append(f"as a TrainState: {error}")
         if policy_params is None:
             try:
-                policy_params, _, _ = checkpointer.restore(_policy_target(policy, players), step)
+                policy_params, _, _ = checkpointer.restore(_policy_target(policy, config), step)
             except CheckpointError as error:
                 errors.append(f"as policy variables: {error}")
         if policy_params is None:
@@ -378,7 +377,7 @@ def load_exported_team(directory: Path) -> tuple[Any, Any]:
         config = TrainConfig.from_saved(raw_config, str(directory / CONFIG_FILE)).validate()
     except ValueError as error:
         raise ShippedTeamError(str(error)) from None
-    target = _train_state_shape(config).params
+    target = train_state_shape(config).params
     check_like(networks, {"policy": target.policy, "critic": target.critic}, str(directory))
     return config, LearnerParams(
         policy=jax.tree.map(jnp.asarray, networks["policy"]),

@@ -29,6 +29,9 @@ class NetworkTeam:
     slot too); False: sample from the policy's distribution."""
     name: str = "network"
     """Shown in match reports and tournaments."""
+    self_features: int | None = None
+    """The self features its networks read: the first ones of a game that gives more (a skill
+    game with ``env.reach_features`` beside a team trained without); None: all."""
 
     def init_carry(self, players_per_team: int) -> PolicyCarry:
         """Zero LSTM memory for the ``players_per_team`` players of one game."""
@@ -42,6 +45,9 @@ class NetworkTeam:
 
         The carry is reset only by ``init_carry``: one match episode is one policy episode.
         """
+        if self.self_features is not None:
+            wanted = obs.self_features[..., : self.self_features]
+            obs = dataclasses.replace(obs, self_features=wanted)
         no_reset = jnp.zeros(obs.self_features.shape[:-1], bool)
         carry, output = cast(
             tuple[PolicyCarry, AnyPolicyOutput], self.policy.apply(params, carry, obs, no_reset)

@@ -41,6 +41,7 @@ import tyro
 from elevens.env.params import MAX_PLAYERS_PER_TEAM, EnvParams
 from elevens.env.randomize import Randomize
 from elevens.env.soccer import Soccer
+from elevens.env.state import NUM_SELF_FEATURES
 from elevens.train.opponents import (
     LEAGUE_EVERY,
     LEAGUE_MIN_GAMES,
@@ -128,6 +129,12 @@ class EnvConfig:
     def check(self) -> None:
         """The checks of this game's own fields (the subclasses' extra ones); raises
         ``ValueError`` naming the first bad one."""
+
+    @property
+    def self_features(self) -> int:
+        """Self features a player's observation holds in this game: ``SELF_FEATURES`` (a game
+        may add its own after them)."""
+        return NUM_SELF_FEATURES
 
     @property
     def players_per_team(self) -> int:

@@ -286,7 +286,9 @@ class SkillGames:
             work = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="elevens-ft-")))
             for g in range(config.learner.games_per_iteration):
                 recorder = Recorder(learner.policy, seed=config.run.seed + g,
-                                    hold_s=server.hold_ms / 1e3, set_plays=server.set_plays)
+                                    hold_s=server.hold_ms / 1e3, set_plays=server.set_plays,
+                                    reach=bool(getattr(config.learner.env, "reach_features",
+                                                       False)))
                 decision = stack.enter_context(DecisionServer(
                     recorder, players=PLAYERS, deadline_s=server.deadline_ms / 1e3,
                     gather_s=server.gather_ms / 1e3, on_default=recorder.defaulted))

@@ -24,9 +24,10 @@ import numpy as np
 
 from elevens.env.params import EnvParams
 from elevens.env.physics import team_signs
-from elevens.env.state import State
+from elevens.env.state import Observation, State
 from elevens.nets.policy import register_kind_mask
 from elevens.robocup.bodies import (
+    DEFAULT,
     TACKLE,
     Commands,
     RcssSoccer,
@@ -45,11 +46,13 @@ from elevens.robocup.skills.decode import (
     shirt_numbers,
 )
 from elevens.robocup.skills.team import (
+    REACH_FEATURES,
     SkillsNaiveTeam,
     SkillsRandomTeam,
     ball_kind_mask,
     nearest_kind_mask,
     random_actions,
+    reach_features,
 )
 from elevens.teams.registry import register_team
 from elevens.train.config import (
@@ -75,15 +78,51 @@ def skills_field(players_per_team: int = 11, **overrides: Any) -> EnvParams:
 class SkillSoccer(RcssSoccer):
     """The skill game: actions ``f32[2, n, 4]`` (team, player, (kind, pointer, x, y); the
     layout and its fallbacks in ``elevens.robocup.skills.decode``); the rest is
-    ``RcssSoccer``'s, with tackles (``ball_pushes``)."""
+    ``RcssSoccer``'s, with tackles (``ball_pushes``). With ``reach`` each player's self
+    features end with ``team.REACH_FEATURES`` (:meth:`reach_table`), as the server runtime
+    reads them from librcsc's intercept table."""
 
     actions: int = SKILL_ACTION_SIZE
     kickers: int | None = controllers.KICKERS
     """The players nearest the ball that may play it (``controllers.commands``): a with-ball
     kind of a farther player in kicking reach intercepts (None: every player in reach)."""
 
+    def __init__(self, players_per_team: int = 11, body: Any = DEFAULT, see_period: int = 1,
+                 stamina: bool = False, goalie: bool = False, reach: bool = False):
+        super().__init__(players_per_team, body, see_period, stamina, goalie)
+        self.reach = reach
+
     def default_params(self, **overrides: Any) -> EnvParams:
         return skills_field(self.players_per_team, **overrides)
+
+    def reach_table(self, state: State,
+                    params: EnvParams) -> tuple[jax.Array, jax.Array, jax.Array]:
+        """(self, fastest other teammate, fastest opponent) i32[2, n] each: the cycles to the
+        ball (``controllers.reach_steps`` from the true state, as ``skills_naive``'s view
+        computes them), ``controllers.HORIZON`` + 1 when not within it."""
+        n, m = self.players_per_team, self.num_players
+        cycles, _ = controllers.reach_steps(
+            state.positions, state.headings, jnp.broadcast_to(state.ball_position, (m, 2)),
+            jnp.broadcast_to(state.ball_velocity, (m, 2)), params.ball_friction, self.body,
+        )
+        own = cycles.reshape(2, n)
+        others = jnp.where(jnp.eye(n, dtype=bool)[None], controllers.HORIZON + 1, own[:, None, :])
+        theirs = jnp.min(own, axis=1)[::-1]
+        return own, jnp.min(others, axis=-1), jnp.broadcast_to(theirs[:, None], (2, n))
+
+    def _with_reach(self, obs: Observation, state: State, params: EnvParams) -> Observation:
+        if not self.reach:
+            return obs
+        own, mate, opp = self.reach_table(state, params)
+        extra = reach_features(own, mate, opp, xp=jnp)
+        return dataclasses.replace(
+            obs, self_features=jnp.concatenate([obs.self_features, extra], axis=-1))
+
+    def observe(self, state: State, params: EnvParams) -> Observation:
+        return self._with_reach(super().observe(state, params), state, params)
+
+    def observe_noisy(self, state: State, params: EnvParams, key: jax.Array) -> Observation:
+        return self._with_reach(super().observe_noisy(state, params, key), state, params)
 
     def action_layout(self) -> str:
         return f"(kind 0..7, pointer 0..{2 * self.players_per_team - 1}, x, y)"
@@ -228,9 +267,30 @@ class SkillsEnvConfig(RcssEnvConfig):
 
     physics: str = "skills"
     """The game's bodies and action: "skills", rcssserver's bodies and skill decisions."""
+    reach_features: bool = False
+    """Each player's self features end with librcsc's intercept table (``team.REACH_FEATURES``:
+    cycles to the ball for itself, its fastest teammate and the fastest opponent), which the
+    server runtime reads from the world model and ``skills_naive`` decides on."""
 
     PHYSICS: ClassVar[str] = "skills"
     BODIES: ClassVar[type[RcssSoccer]] = SkillSoccer
+
+    def make_env(self, players_per_team: int) -> SkillSoccer:
+        return SkillSoccer(
+            players_per_team, see_period=self.see_period, stamina=self.stamina,
+            goalie=self.goalie, reach=self.reach_features,
+        )
+
+    @property
+    def self_features(self) -> int:
+        return super().self_features + len(REACH_FEATURES) * bool(self.reach_features)
+
+    def check(self) -> None:
+        super().check()
+        if not isinstance(self.reach_features, bool):
+            raise ValueError(
+                f"env.reach_features={self.reach_features!r} is invalid: it must be True or False"
+            )
 
 
 def skills_config(preset: str, **overrides: Any) -> TrainConfig:

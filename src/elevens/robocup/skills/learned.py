@@ -41,7 +41,7 @@ from elevens.robocup.skills.observe import PLAYERS, observe
 from elevens.robocup.skills.observe import Observation as SkillObservation
 from elevens.robocup.skills.set_plays import TakerGuard, check_set_plays
 from elevens.robocup.skills.space import Decisions, to_player_actions
-from elevens.robocup.skills.team import SKILLS_FIELD
+from elevens.robocup.skills.team import REACH_FEATURES, SKILLS_FIELD, reach_features
 from elevens.teams.scripted import Field
 
 __all__ = [
@@ -54,6 +54,7 @@ __all__ = [
     "load_learned_skills",
     "sim_observation",
     "skill_decisions",
+    "trained_reach",
 ]
 
 BALL_SEEN_WITHIN = 10
@@ -83,7 +84,7 @@ def _slot_table(unum: np.ndarray) -> np.ndarray:
 
 
 def sim_observation(obs: SkillObservation, field: Field = SKILLS_FIELD, *,
-                    episode_length: int = MATCH_CLOCK) -> Observation:
+                    episode_length: int = MATCH_CLOCK, reach: bool = False) -> Observation:
     """The runtime's arrays over ``m`` deciding players -> the simulator's ``Observation``
     [m] of each as player ``unum - 1`` of an 11 v 11 team (numpy, team frame; librcsc's
     frame is the team frame: our team attacks +x).
@@ -100,6 +101,9 @@ def sim_observation(obs: SkillObservation, field: Field = SKILLS_FIELD, *,
       dash or turn librcsc's skill then chose is not in the world model;
     - ``start_x``, ``start_y``: the player's kick-off point (``naive.kick_off_points``), where
       the runtime places it before every kick-off, rather than a spawn point of the game.
+
+    With ``reach`` (a team trained with ``env.reach_features``) the self features end with
+    librcsc's intercept table (``team.REACH_FEATURES``), as the skill game adds them.
     """
     m = len(obs)
     extent = np.array([field.half_length, field.half_width], np.float32)
@@ -175,6 +179,10 @@ def sim_observation(obs: SkillObservation, field: Field = SKILLS_FIELD, *,
     for name in ball:
         own[f"ball_{name}"] = entities[:, -1, _E[name]]
     self_features = np.stack([own[name] for name in SELF_FEATURES], axis=-1).astype(np.float32)
+    if reach:
+        self_features = np.concatenate([self_features, reach_features(
+            np.asarray(obs.self_reach), np.asarray(obs.mate_reach), np.asarray(obs.opp_reach))],
+            axis=-1)
     leaves: dict[str, Any] = dict(self_features=self_features, entities=entities,
                                   entity_mask=mask)  # numpy leaves: the padding cuts them here
     return Observation(**leaves)
@@ -241,9 +249,10 @@ class LearnedSkills:
 
     def __init__(self, policy: Any, params: Any, *, name: str = "learned",
                  field: Field = SKILLS_FIELD, episode_length: int = MATCH_CLOCK,
-                 seed: int = 0, set_plays: str = "routine") -> None:
+                 seed: int = 0, set_plays: str = "routine", reach: bool = False) -> None:
         check_set_plays(set_plays)
         self.set_plays = set_plays
+        self.reach = reach
         self.guard = TakerGuard()
         self.policy = policy
         self.params = params
@@ -275,7 +284,8 @@ class LearnedSkills:
         each player's memory carried on. One policy call for players of distinct shirt
         numbers; a batch holding a player twice (two cycles' requests) is decided in order,
         one call for each repeat."""
-        view = sim_observation(obs, self.field, episode_length=self.episode_length)
+        view = sim_observation(obs, self.field, episode_length=self.episode_length,
+                               reach=self.reach)
         out = np.zeros((len(obs.unum), SKILL_ACTION_SIZE), np.float32)
         for rows, slot, fill, present in shirt_batches(obs.unum):
             padded = jax.tree.map(lambda leaf, fill=fill: leaf[fill], view)
@@ -301,7 +311,8 @@ class LearnedSkills:
         """Compile the policy call (one shape for every batch) before a match; nobody's
         memory changes."""
         leaves: dict[str, Any] = dict(
-            self_features=np.zeros((PLAYERS, len(SELF_FEATURES)), np.float32),
+            self_features=np.zeros(
+                (PLAYERS, len(SELF_FEATURES) + self.reach * len(REACH_FEATURES)), np.float32),
             entities=np.zeros((PLAYERS, _SLOTS, len(ENTITY_FEATURES)), np.float32),
             entity_mask=np.ones((PLAYERS, _SLOTS), bool),
         )
@@ -345,6 +356,15 @@ def is_skills_team(spec: str) -> bool:
         return False
 
 
+def trained_reach(spec: str) -> bool:
+    """Whether the trained skills team ``spec`` sees librcsc's intercept table
+    (``env.reach_features``, read from its config)."""
+    from elevens.runs.teams import trained_config
+
+    config = trained_config(spec)
+    return bool(getattr(config.learner.env, "reach_features", False)) if config else False
+
+
 def load_learned_skills(spec: str, *, deterministic: bool = True, warm: bool = True,
                         set_plays: str = "routine") -> LearnedSkills:
     """The runtime's ``decide`` for the trained skills team ``spec`` (a checkpoint path,
@@ -356,7 +376,8 @@ def load_learned_skills(spec: str, *, deterministic: bool = True, warm: bool = T
     check_skills_team(spec)
     team = load_team(spec, deterministic=deterministic)
     team.check_size(PLAYERS, SKILL_ACTION_SIZE)
-    decide = LearnedSkills(team.policy, team.params, name=team.name, set_plays=set_plays)
+    decide = LearnedSkills(team.policy, team.params, name=team.name, set_plays=set_plays,
+                           reach=trained_reach(spec))
     if warm:
         decide.warm_up()
     return decide

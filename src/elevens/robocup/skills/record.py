@@ -43,7 +43,7 @@ from elevens.robocup.skills.observe import PLAYERS, observe
 from elevens.robocup.skills.observe import Observation as SkillObservation
 from elevens.robocup.skills.set_plays import TakerGuard, check_set_plays
 from elevens.robocup.skills.space import to_player_actions
-from elevens.robocup.skills.team import SKILLS_FIELD
+from elevens.robocup.skills.team import REACH_FEATURES, SKILLS_FIELD
 from elevens.teams.scripted import Field
 from elevens.train.rollout import Rollout, StepRecord, Teacher, collected
 
@@ -122,8 +122,9 @@ class Recorder:
 
     def __init__(self, policy: Any, *, seed: int = 0, field: Field = SKILLS_FIELD,
                  episode_length: int = MATCH_CLOCK, hold_s: float = 0.0,
-                 set_plays: str = "routine") -> None:
+                 set_plays: str = "routine", reach: bool = False) -> None:
         check_set_plays(set_plays)
+        self.reach = reach
         self.set_plays = set_plays
         self.guard = TakerGuard()
         self.policy = policy
@@ -211,7 +212,8 @@ class Recorder:
         from elevens.env.state import ENTITY_FEATURES, SELF_FEATURES
 
         leaves: dict[str, Any] = dict(
-            self_features=np.zeros((1, PLAYERS, len(SELF_FEATURES)), np.float32),
+            self_features=np.zeros(
+                (1, PLAYERS, len(SELF_FEATURES) + self.reach * len(REACH_FEATURES)), np.float32),
             entities=np.zeros((1, PLAYERS, 2 * PLAYERS, len(ENTITY_FEATURES)), np.float32),
             entity_mask=np.ones((1, PLAYERS, 2 * PLAYERS), bool),
         )
@@ -226,7 +228,8 @@ class Recorder:
             self._recording.wait(self.hold_s)
         with np.errstate(over="ignore"):  # librcsc's unplaced values: _finite
             obs, unplaced = _finite(observe(states))
-        view = sim_observation(obs, self.field, episode_length=self.episode_length)
+        view = sim_observation(obs, self.field, episode_length=self.episode_length,
+                               reach=self.reach)
         with self._lock:
             params, match = self.params, self.match
         m = len(obs.unum)

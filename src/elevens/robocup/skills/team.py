@@ -38,11 +38,24 @@ from elevens.robocup.skills.space import Kind
 from elevens.teams.scripted import Field
 
 __all__ = [
-    "SkillsNaiveTeam", "SkillsRandomTeam", "ball_kind_mask", "nearest_kind_mask", "random_actions",
-    "skill_observation",
+    "REACH_FEATURES", "SkillsNaiveTeam", "SkillsRandomTeam", "ball_kind_mask", "nearest_kind_mask",
+    "random_actions", "reach_features", "skill_observation",
 ]
 
 SKILLS_FIELD = Field.of(rcss_field())
+
+#: The self features a skill game with ``env.reach_features`` adds after ``SELF_FEATURES``:
+#: librcsc's intercept table, which ``skills_naive`` decides on (who goes to the ball, who has
+#: it): cycles for this player, the fastest other teammate and the fastest opponent to reach
+#: the ball, over ``controllers.HORIZON + 1`` (1: not within the horizon).
+REACH_FEATURES = ("self_reach", "mate_reach", "opp_reach")
+
+
+def reach_features(self_reach: Any, mate_reach: Any, opp_reach: Any, xp: Any = np) -> Any:
+    """f32[..., 3]: the cycles (ints [...]) as :data:`REACH_FEATURES` holds them."""
+    steps = xp.stack([self_reach, mate_reach, opp_reach], axis=-1).astype(xp.float32)
+    horizon = controllers.HORIZON + 1
+    return xp.clip(steps, 0.0, horizon) / horizon
 _S = {name: i for i, name in enumerate(SELF_FEATURES)}
 _E = {name: i for i, name in enumerate(ENTITY_FEATURES)}
 _PLAY_ON = 2

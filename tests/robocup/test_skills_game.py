@@ -552,14 +552,19 @@ def test_two_players_on_one_ball_do_not_stall_the_game() -> None:
 
 
 def test_reach_features_are_the_intercept_table_skills_naive_reads() -> None:
-    env = SkillSoccer(11, reach=True)
+    env = SkillSoccer(4, reach=True)
     params = env.default_params(episode_length=100)
-    state, _ = env.reset(jax.random.key(2), params)
-    step = jax.jit(env.step)
-    for t in range(25):  # random play: the ball rolls, the players turn and run
-        state, obs, *_ = step(jax.random.key(t), state, env.sample_actions(jax.random.key(t + 99)),
-                              params)
-    assert obs.self_features.shape[-1] == obs_features(SkillSoccer(11), state, params) + 3
+
+    @jax.jit
+    def played(key: jax.Array) -> tuple[State, Any]:  # random play: the ball rolls, they run
+        def body(state: State, k: jax.Array) -> tuple[State, None]:
+            return env.step(k, state, env.sample_actions(jax.random.fold_in(k, 1)), params)[0], None
+
+        state = jax.lax.scan(body, env.reset(key, params)[0], jax.random.split(key, 25))[0]
+        return state, env.observe(state, params)
+
+    state, obs = played(jax.random.key(2))
+    assert obs.self_features.shape[-1] == obs_features(SkillSoccer(4), state, params) + 3
     team = SkillsNaiveTeam()
     tables = []
     for side in (0, 1):

@@ -114,13 +114,14 @@ def test_a_team_trained_with_reach_features_reads_librcscs_intercept_table(
     # In the simulator's tournament it plays a team trained without the table: the game gives
     # the table, and that team reads the features before it.
     from elevens.cli.eval import _teams_and_env
-    from elevens.eval.match import play_match
 
     (teams,), env, game = _teams_and_env(((str(tmp_path), str(trained)),), 2, 4, True, 1)
     assert env.reach and [t.policy.self_features for t in teams] == [18, 15]
-    result = play_match(env, game, teams[0].policy, teams[1].policy, jax.random.key(0), 2,
-                        teams[0].params, teams[1].params)
-    assert np.asarray(result.outcome).shape == (2,)
+    _, obs = env.reset(jax.random.key(0), game)
+    plain = teams[1]
+    _, actions = jax.jit(plain.policy.act)(plain.params, plain.policy.init_carry(2), obs.team(1),
+                                           jax.random.key(1))
+    assert np.asarray(actions).shape == (2, SKILL_ACTION_SIZE)
 
 
 def test_slots_the_world_model_does_not_place_are_masked_and_zero() -> None:

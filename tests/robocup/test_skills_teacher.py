@@ -117,12 +117,25 @@ def test_skills_naive_teaches_in_the_skill_game() -> None:
     assert np.all(unmasked > 0.0)
 
 
-def test_a_run_with_the_kind_mask_starts_from_networks_without_it(tmp_path: Path) -> None:
-    net = {name: value for name, value in TINY.items() if name.startswith("network.")}
-    source = skills_config("2v2", **net)
+NET = {name: value for name, value in TINY.items() if name.startswith("network.")}
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Any]:
+    """(a skills-2v2 run directory with the tiny networks at their init as checkpoint 0, its
+    TrainState)."""
+    source = skills_config("2v2", **NET)
     state = make_learner(source.learner, source.learner.make_env()).init(jax.random.key(3))
+    tmp_path = tmp_path_factory.mktemp("tiny")
     with Checkpointer(tmp_path / "source" / "checkpoints") as checkpointer:
         checkpointer.save(0, state, source.to_dict(), {"iteration": 0})
+    return tmp_path, state
+
+
+def test_a_run_with_the_kind_mask_starts_from_networks_without_it(
+        tiny_run: tuple[Path, Any]) -> None:
+    tmp_path, state = tiny_run
+    net = NET
     masked = skills_config("2v2", **net, **{"network.kind_mask": "ball"})
     _, params = load_start_params(str(tmp_path / "source"), masked)
     for a, b in zip(jax.tree.leaves(params), jax.tree.leaves(state.params), strict=True):
@@ -133,14 +146,12 @@ def test_a_run_with_the_kind_mask_starts_from_networks_without_it(tmp_path: Path
         load_start_params(str(tmp_path / "source"), wider)
 
 
-def test_a_run_with_reach_features_starts_from_networks_without_them(tmp_path: Path) -> None:
-    net = {name: value for name, value in TINY.items() if name.startswith("network.")}
-    source = skills_config("2v2", **net)
+def test_a_run_with_reach_features_starts_from_networks_without_them(
+        tiny_run: tuple[Path, Any]) -> None:
+    tmp_path, state = tiny_run
+    source = skills_config("2v2", **NET)
     env = source.learner.make_env()
-    state = make_learner(source.learner, env).init(jax.random.key(3))
-    with Checkpointer(tmp_path / "source" / "checkpoints") as checkpointer:
-        checkpointer.save(0, state, source.to_dict(), {"iteration": 0})
-    reach = skills_config("2v2", **net, **{"env.reach_features": True})
+    reach = skills_config("2v2", **NET, **{"env.reach_features": True})
     _, params = load_start_params(str(tmp_path / "source"), reach)
     kernel = params.policy["params"]["encode_ff"]["hidden"]["kernel"]
     before = state.params.policy["params"]["encode_ff"]["hidden"]["kernel"]
@@ -148,18 +159,26 @@ def test_a_run_with_reach_features_starts_from_networks_without_them(tmp_path: P
     # The new inputs' weights start at zero: the policy decides what it decided.
     reach_env = reach.learner.make_env()
     game = reach_env.default_params(episode_length=50)
-    start, _ = reach_env.reset(jax.random.key(1), game)
-    for t in range(20):  # the ball rolling, the players moved: the table is not all zeros
-        start, *_ = reach_env.step(jax.random.key(t), start, reach_env.sample_actions(
-            jax.random.key(t + 50)), game)
-    grown, plain = reach_env.observe(start, game).team(0), env.observe(start, game).team(0)
-    assert np.asarray(grown.self_features[:, -3:]).any()
     policy = source.learner.network.policy()
     carry, reset = policy.initial_carry((2,)), jnp.zeros(2, bool)
-    a = policy.apply(params.policy, carry, grown, reset)
-    b = policy.apply(state.params.policy, carry, plain, reset)
-    np.testing.assert_allclose(np.asarray(a[1].kind_logits), np.asarray(b[1].kind_logits),
-                               atol=1e-5)
+
+    @jax.jit
+    def both(key: jax.Array) -> tuple[jax.Array, ...]:
+        def body(start: Any, k: jax.Array) -> tuple[Any, None]:
+            actions = reach_env.sample_actions(jax.random.fold_in(k, 1))
+            return reach_env.step(k, start, actions, game)[0], None
+
+        # The ball rolling, the players moved: the table is not all zeros.
+        start = jax.lax.scan(body, reach_env.reset(key, game)[0], jax.random.split(key, 20))[0]
+        grown = reach_env.observe(start, game).team(0)
+        plain = env.observe(start, game).team(0)
+        a = policy.apply(params.policy, carry, grown, reset)[1].kind_logits
+        b = policy.apply(state.params.policy, carry, plain, reset)[1].kind_logits
+        return grown.self_features[:, -3:], a, b
+
+    table, a, b = both(jax.random.key(1))
+    assert np.asarray(table).any()
+    np.testing.assert_allclose(np.asarray(a), np.asarray(b), atol=1e-5)
 
 
 def test_the_nearest_mask_sends_the_player_nearest_the_ball_and_places_the_rest() -> None:

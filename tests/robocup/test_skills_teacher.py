@@ -21,7 +21,9 @@ from elevens.nets.policy import AttentionPolicy
 from elevens.robocup.skills.game import skills_config
 from elevens.robocup.skills.team import (
     SKILLS_FIELD,
+    SkillsNaiveTeam,
     ball_kind_mask,
+    first_kind_mask,
     nearest_kind_mask,
     skill_observation,
 )
@@ -179,6 +181,43 @@ def test_a_run_with_reach_features_starts_from_networks_without_them(
     table, a, b = both(jax.random.key(1))
     assert np.asarray(table).any()
     np.testing.assert_allclose(np.asarray(a), np.asarray(b), atol=1e-5)
+
+
+def test_the_first_mask_allows_skills_naives_kind_where_the_nearest_mask_does_not() -> None:
+    # skills_naive sends the player who reaches the ball first by the intercept table, which
+    # the first mask reads (env.reach_features); the nearest one by distance is another player
+    # whenever the ball rolls or a player faces away.
+    from elevens.robocup.skills.game import SkillSoccer
+    from elevens.robocup.skills.naive import naive_choices
+
+    env = SkillSoccer(11, reach=True)
+    params = env.default_params(episode_length=200)
+    team = SkillsNaiveTeam()
+
+    @jax.jit
+    def kinds(key: jax.Array) -> tuple[jax.Array, ...]:
+        def body(state: Any, k: jax.Array) -> tuple[Any, tuple[jax.Array, ...]]:
+            obs = env.observe(state, params)
+            actions = jnp.stack([team.play(obs.team(0)), team.play(obs.team(1))])
+            view, _ = skill_observation(obs.team(0), team.field)
+            kind = naive_choices(view, jnp)[0]
+            return env.step(k, state, actions, params)[0], (
+                kind, first_kind_mask(obs.team(0)), nearest_kind_mask(obs.team(0)))
+
+        return jax.lax.scan(body, env.reset(key, params)[0], jax.random.split(key, 150))[1]
+
+    kind, first, nearest = (np.asarray(a) for a in kinds(jax.random.key(4)))
+    rows = (kind[..., None] == np.arange(8))[:, 1:]  # outfield: the goalie plays its routine
+    first, nearest = first[:, 1:], nearest[:, 1:]
+    runs = rows[..., 4].sum()
+    assert runs > 50  # intercepts in play
+    allowed_first = (first & rows).any(-1).mean()
+    allowed_nearest = (nearest & rows).any(-1).mean()
+    assert allowed_first > 0.995 and allowed_first > allowed_nearest
+    assert (first & rows)[..., 4].sum() / runs > 0.99
+    with pytest.raises(ValueError, match=r"ball_first.*needs --env.reach-features"):
+        first_kind_mask(SkillSoccer(11).observe(env.reset(jax.random.key(0), params)[0],
+                                                params).team(0))
 
 
 def test_the_nearest_mask_sends_the_player_nearest_the_ball_and_places_the_rest() -> None:

@@ -50,6 +50,7 @@ from elevens.robocup.skills.team import (
     SkillsNaiveTeam,
     SkillsRandomTeam,
     ball_kind_mask,
+    first_kind_mask,
     nearest_kind_mask,
     random_actions,
     reach_features,
@@ -333,6 +334,7 @@ def register() -> None:
     register_team("skills_random", SkillsRandomTeam())
     register_kind_mask("ball", ball_kind_mask)
     register_kind_mask("ball_nearest", nearest_kind_mask)
+    register_kind_mask("ball_first", first_kind_mask)
     for preset in ("2v2", "11v11"):
         register_preset(
             f"skills-{preset}",

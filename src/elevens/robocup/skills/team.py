@@ -38,8 +38,8 @@ from elevens.robocup.skills.space import Kind
 from elevens.teams.scripted import Field
 
 __all__ = [
-    "REACH_FEATURES", "SkillsNaiveTeam", "SkillsRandomTeam", "ball_kind_mask", "nearest_kind_mask",
-    "random_actions", "reach_features", "skill_observation",
+    "REACH_FEATURES", "SkillsNaiveTeam", "SkillsRandomTeam", "ball_kind_mask", "first_kind_mask",
+    "nearest_kind_mask", "random_actions", "reach_features", "skill_observation",
 ]
 
 SKILLS_FIELD = Field.of(rcss_field())
@@ -97,6 +97,39 @@ def nearest_kind_mask(obs: Observation, field: Field = SKILLS_FIELD,
     nearest = seen[..., -1] & (own_gap <= jnp.min(mate_gap, axis=-1, initial=jnp.inf))
     runs = (jnp.arange(OPEN_KINDS) == Kind.INTERCEPT) | (jnp.arange(OPEN_KINDS) == Kind.TACKLE)
     off_ball = jnp.where(nearest[..., None], runs, ~runs & (jnp.arange(OPEN_KINDS) > Kind.HOLD))
+    ball_mask = ball_kind_mask(obs, field, params)
+    return jnp.where(ball_mask[..., :1], ball_mask, off_ball)
+
+
+def first_kind_mask(obs: Observation, field: Field = SKILLS_FIELD,
+                    params: Any = DEFAULT) -> jax.Array:
+    """``network.kind_mask='ball_first'`` (with ``env.reach_features``): ``ball_kind_mask``, and
+    without the ball in reach the player who reaches it first of its team by the intercept
+    table (``REACH_FEATURES``: its own cycles at most its fastest teammate's) while no teammate
+    has it in reach may only run at it (INTERCEPT, TACKLE), any other only take a place
+    (GO_TO, MARK): ``skills_naive``'s rule of who goes to the ball."""
+    width = len(SELF_FEATURES) + len(REACH_FEATURES)
+    if obs.self_features.shape[-1] != width:
+        raise ValueError(
+            "network.kind_mask='ball_first' reads the intercept table: it needs "
+            f"--env.reach-features (self features: {obs.self_features.shape[-1]}, not {width})"
+        )
+    e, seen = obs.entities, obs.entity_mask
+    scale = 2.0 * field.half_length
+
+    def where(slot: Any) -> jax.Array:  # [..., k, 2] in the player's heading frame
+        d = e[..., slot, _E["distance"]] * scale
+        return d[..., None] * jnp.stack(
+            [e[..., slot, _E["cos_bearing"]], e[..., slot, _E["sin_bearing"]]], axis=-1)
+
+    n = e.shape[-2] // 2
+    mate_gap = jnp.sqrt(jnp.sum((where(slice(0, n - 1)) - where(slice(-1, None))) ** 2, axis=-1))
+    mate_has_it = jnp.any(seen[..., : n - 1] & seen[..., -1:]
+                          & (mate_gap <= params.kickable_distance), axis=-1)
+    own, mate = (obs.self_features[..., len(SELF_FEATURES) + i] for i in range(2))
+    first = (own <= mate) & ~mate_has_it
+    runs = (jnp.arange(OPEN_KINDS) == Kind.INTERCEPT) | (jnp.arange(OPEN_KINDS) == Kind.TACKLE)
+    off_ball = jnp.where(first[..., None], runs, ~runs & (jnp.arange(OPEN_KINDS) > Kind.HOLD))
     ball_mask = ball_kind_mask(obs, field, params)
     return jnp.where(ball_mask[..., :1], ball_mask, off_ball)
 

@@ -134,3 +134,28 @@ def test_a_balanced_teacher_weighs_every_kind_alike() -> None:
     )
     with pytest.raises(ValueError, match="ppo.teacher_balance=1 is invalid: it must be True"):
         tiny_config(**{"ppo.teacher_balance": 1})
+
+
+def test_a_group_balanced_teacher_weighs_each_kind_masks_group_alike() -> None:
+    # Five entries: four in the group whose mask allows kinds 0 and 1 (three of kind 0, one of
+    # kind 1), one in the group that allows kind 2 alone. Each group weighs half of the total
+    # (4 x 5/8, 1 x 5/2) and within a group the kinds keep their shares (unlike balance).
+    from elevens.nets.distributions import ParametrisedDistribution
+    from elevens.nets.policy import MASKED_LOGIT
+    from elevens.train.ppo import teacher_terms
+
+    kinds, slots = 3, 2
+    logits = jnp.where(jnp.array([[1, 1, 0]] * 4 + [[0, 0, 1]], bool), 0.0, MASKED_LOGIT)
+    distribution = ParametrisedDistribution.create(
+        logits, jnp.zeros((5, kinds, slots)), jnp.ones((5, slots), bool),
+        jnp.zeros((5, kinds, 2)), jnp.zeros((5, kinds, 2)),
+    )
+    action = jnp.array([[0, 0, 0.1, 0.2], [0, 0, -0.3, 0.0], [0, 0, 0.5, 0.5], [1, 0, 0.0, 0.1],
+                        [2, 0, 0.2, 0.0]])
+    plain = teacher_terms(distribution, action)
+    grouped = teacher_terms(distribution, action, group_balance=True)
+    np.testing.assert_allclose(np.asarray(grouped.log_prob), np.asarray(plain.log_prob)
+                               * np.array([5 / 8, 5 / 8, 5 / 8, 5 / 8, 5 / 2]), rtol=1e-6)
+    with pytest.raises(ValueError, match="teacher_group_balance=True is invalid with "
+                                         "ppo.teacher_balance=True"):
+        tiny_config(**{"ppo.teacher_group_balance": True, "ppo.teacher_balance": True})

@@ -176,7 +176,7 @@ _SILENT_DEFAULTS = (
     "learner.env.game.possession_radius", "learner.env.game.possession_by",
     "learner.env.game.observation_noise", "learner.env.randomize",
     "learner.ppo.teacher", "learner.ppo.teacher_weight", "learner.ppo.teacher_iterations",
-    "learner.ppo.teacher_balance",
+    "learner.ppo.teacher_balance", "learner.ppo.teacher_group_balance",
 )
 
 
@@ -823,6 +823,16 @@ def _check_ppo_extras(fields: Mapping[str, Any]) -> None:
     _require(
         isinstance(balance, bool),
         f"ppo.teacher_balance={balance!r} is invalid: it must be True or False",
+    )
+    groups = fields["teacher_group_balance"]
+    _require(
+        isinstance(groups, bool),
+        f"ppo.teacher_group_balance={groups!r} is invalid: it must be True or False",
+    )
+    _require(
+        not (groups and balance),
+        "ppo.teacher_group_balance=True is invalid with ppo.teacher_balance=True: weigh the "
+        "teacher's entries by their kind or by their kind mask's group, not both",
     )
 
 

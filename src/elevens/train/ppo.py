@@ -108,6 +108,13 @@ class PPOHyperparams:
     drowns the rare decisive ones: taught by ``skills_naive`` at 11 v 11 (85% GO_TO, 14%
     INTERCEPT), a policy agreed on 98% of GO_TO and 9% of INTERCEPT after 20 iterations. The
     reported ``train/teacher_log_prob`` is then the balanced mean."""
+    teacher_group_balance: bool = False
+    """Parametrised head with a kind mask (``network.kind_mask``): weight each entry by the
+    inverse share of its group, the kinds the mask allows there (the ball holder's, the
+    runner's, the others'), among the entries that count, so that each group of decisions counts
+    alike while within a group the teacher's kinds keep their shares (``teacher_balance``
+    shifts the policy towards the rare kinds: taught so in the server, it passed every ball).
+    The ball holder is 1.5% of the rows in the skill game."""
 
     def teacher_weight_at(self, iteration: jax.Array) -> jax.Array:
         """f32[]: the teacher's weight w after ``iteration`` i32[] completed iterations (traced:
@@ -524,6 +531,7 @@ class TeacherTerms(NamedTuple):
 
 def teacher_terms(
     distribution: Any, action: jax.Array, balance: bool = False, played: ArrayLike | None = None,
+    group_balance: bool = False,
 ) -> TeacherTerms:
     """The policy's ``distribution`` (``TanhGaussian`` or ``ParametrisedDistribution``, leading
     [...]) scored on a teacher's ``action`` f32[..., A], the game's action format (the format of
@@ -531,7 +539,8 @@ def teacher_terms(
     ``played``: bool[...] where the policy's action was played (None: everywhere), the only
     entries that count; ``balance``: the parametrised head's log-probabilities weighted by the
     inverse share of the teacher's kind among the entries that count
-    (``PPOHyperparams.teacher_balance``)."""
+    (``PPOHyperparams.teacher_balance``); ``group_balance``: weighted by the inverse share of
+    the entry's kind-mask group (``PPOHyperparams.teacher_group_balance``)."""
     from elevens.nets.distributions import ParametrisedDistribution
 
     action = jax.lax.stop_gradient(jnp.asarray(action, jnp.float32))
@@ -554,6 +563,10 @@ def teacher_terms(
         log_prob = distribution.log_prob_of_action(clipped)
         if balance:
             log_prob = log_prob * _kind_balance(kind, mask, kinds)
+        if group_balance:
+            allowed_kinds = distribution.kind_logits > MASKED_LOGIT / 2
+            group = jnp.sum(allowed_kinds * (2 ** jnp.arange(kinds)), axis=-1)
+            log_prob = log_prob * _kind_balance(group, mask, 2**kinds)
         return TeacherTerms(
             log_prob=log_prob,
             mask=mask,
@@ -639,6 +652,7 @@ def sequence_loss(
         terms = teacher_terms(
             distribution, sequences(batch.teacher_action), hp.teacher_balance,
             None if batch.policy_mask is None else sequences(batch.policy_mask),
+            hp.teacher_group_balance,
         )
         taught = {
             "teacher_log_prob": terms.log_prob,

@@ -15,7 +15,6 @@ import pytest
 import elevens.robocup  # noqa: F401 - registers the skill game and its teams
 from elevens.env.state import State
 from elevens.robocup.skills import decode as d
-from elevens.robocup.skills.controllers import HORIZON
 from elevens.robocup.skills.game import SkillSoccer, skills_config
 from elevens.robocup.skills.naive import naive_choices
 from elevens.robocup.skills.observe import Observation, observe
@@ -549,34 +548,6 @@ def test_two_players_on_one_ball_do_not_stall_the_game() -> None:
         longest = max((len(run) for run in "".join("1" if x else "0" for x in still).split("0")),
                       default=0)
         assert longest < 20, (seed, longest)
-
-
-def test_reach_features_are_the_intercept_table_skills_naive_reads() -> None:
-    env = SkillSoccer(4, reach=True)
-    params = env.default_params(episode_length=100)
-
-    @jax.jit
-    def played(key: jax.Array) -> tuple[State, Any]:  # random play: the ball rolls, they run
-        def body(state: State, k: jax.Array) -> tuple[State, None]:
-            return env.step(k, state, env.sample_actions(jax.random.fold_in(k, 1)), params)[0], None
-
-        state = jax.lax.scan(body, env.reset(key, params)[0], jax.random.split(key, 25))[0]
-        return state, env.observe(state, params)
-
-    state, obs = played(jax.random.key(2))
-    assert obs.self_features.shape[-1] == obs_features(SkillSoccer(4), state, params) + 3
-    team = SkillsNaiveTeam()
-    tables = []
-    for side in (0, 1):
-        view, _ = skill_observation(obs.team(side), team.field)
-        tables.append(np.stack([view.self_reach, view.mate_reach, view.opp_reach], axis=-1))
-        got = np.asarray(obs.team(side).self_features[:, -3:]) * (HORIZON + 1)
-        np.testing.assert_allclose(got, np.minimum(tables[-1], HORIZON + 1), atol=1e-4)
-    assert len(np.unique(tables)) > 3
-
-
-def obs_features(env: SkillSoccer, state: State, params: Any) -> int:
-    return int(env.observe(state, params).self_features.shape[-1])
 
 
 def test_skills_naive_beats_random_in_the_skill_game() -> None:

@@ -93,15 +93,19 @@ def test_a_team_trained_with_reach_features_reads_librcscs_intercept_table(
     # In the server the table is librcsc's; here the skill game's own (the view skills_naive
     # reads), so the converted features equal the game's.
     params, current, _ = _moving(11)
-    sim = SkillSoccer(11, reach=True).observe(current, params).team(0)
-    leaves = {k: np.asarray(v) for k, v in jax.jit(
-        lambda o: vars(skill_observation(o, SKILLS_FIELD)[0]))(sim).items()}
-    arrays = SkillObservation(**{**leaves, "cycle": np.full(11, int(current.step))})
-    back = sim_observation(arrays, episode_length=params.episode_length, reach=True)
-    assert back.self_features.shape == sim.self_features.shape == (11, len(SELF_FEATURES) + 3)
-    np.testing.assert_allclose(back.self_features[:, -3:], np.asarray(sim.self_features)[:, -3:],
-                               atol=1e-6)
-    assert len(np.unique(back.self_features[:, -3:])) > 2
+    to_arrays = jax.jit(lambda o: vars(skill_observation(o, SKILLS_FIELD)[0]))
+    for team in (0, 1):
+        sim = SkillSoccer(11, reach=True).observe(current, params).team(team)
+        leaves = {k: np.asarray(v) for k, v in to_arrays(sim).items()}
+        arrays = SkillObservation(**{**leaves, "cycle": np.full(11, int(current.step))})
+        back = sim_observation(arrays, episode_length=params.episode_length, reach=True)
+        assert back.self_features.shape == sim.self_features.shape == (11, len(SELF_FEATURES) + 3)
+        np.testing.assert_allclose(back.self_features[:, :-3],
+                                   sim_observation(arrays, episode_length=params.episode_length)
+                                   .self_features, atol=1e-6)
+        np.testing.assert_allclose(back.self_features[:, -3:],
+                                   np.asarray(sim.self_features)[:, -3:], atol=1e-6)
+        assert len(np.unique(back.self_features[:, -3:])) > 2
     # A checkpoint trained so decides the proxy's cycle with the table (one per metre here).
     config = skills_config("2v2", **{**TINY, "run.run_dir": str(tmp_path),
                                      "env.reach_features": True})

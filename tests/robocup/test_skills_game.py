@@ -543,11 +543,9 @@ def test_two_players_on_one_ball_do_not_stall_the_game() -> None:
         start, obs = env.reset(key, params)
         return jax.lax.scan(body, (start, obs), jax.random.split(key, 300))[1]
 
-    for seed in range(3):
-        still = np.asarray(game(jax.random.key(seed)))
-        longest = max((len(run) for run in "".join("1" if x else "0" for x in still).split("0")),
-                      default=0)
-        assert longest < 20, (seed, longest)
+    still = np.asarray(game(jax.random.key(0)))
+    longest = max(len(run) for run in "".join("1" if x else "0" for x in still).split("0"))
+    assert longest < 20, longest
 
 
 def test_skills_naive_beats_random_in_the_skill_game() -> None:

@@ -204,13 +204,13 @@ def test_the_first_mask_allows_skills_naives_kind_where_the_nearest_mask_does_no
             return env.step(k, state, actions, params)[0], (
                 kind, first_kind_mask(obs.team(0)), nearest_kind_mask(obs.team(0)))
 
-        return jax.lax.scan(body, env.reset(key, params)[0], jax.random.split(key, 150))[1]
+        return jax.lax.scan(body, env.reset(key, params)[0], jax.random.split(key, 100))[1]
 
     kind, first, nearest = (np.asarray(a) for a in kinds(jax.random.key(4)))
     rows = (kind[..., None] == np.arange(8))[:, 1:]  # outfield: the goalie plays its routine
     first, nearest = first[:, 1:], nearest[:, 1:]
     runs = rows[..., 4].sum()
-    assert runs > 50  # intercepts in play
+    assert runs > 40  # intercepts in play
     allowed_first = (first & rows).any(-1).mean()
     allowed_nearest = (nearest & rows).any(-1).mean()
     assert allowed_first > 0.995 and allowed_first > allowed_nearest

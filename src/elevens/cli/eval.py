@@ -199,9 +199,9 @@ def _teams_and_env(
     ``see_period`` (the tournament) teams that all give the 12-value action play the simulator
     with rcssserver's bodies, and teams that all give the 4-value skill action its skill game
     (the server's field unless the checkpoints trained on another)."""
-    from elevens.env.state import NUM_SELF_FEATURES
     from elevens.robocup.bodies import RcssSoccer
     from elevens.robocup.skills.game import SkillSoccer
+    from elevens.robocup.skills.team import self_feature_count
     from elevens.runs.teams import check_team_size, common_field, fit_to_field
 
     games = {12: ("the 12-value RoboCup action", RcssSoccer),
@@ -230,7 +230,7 @@ def _teams_and_env(
         wide = max((getattr(team.policy, "self_features", None) or 0 for team in every),
                    default=0)
         env = (SkillSoccer(players, see_period=see_period or 1, stamina=stamina, goalie=goalie,
-                           reach=wide > NUM_SELF_FEATURES) if kind == 4
+                           reach=wide == self_feature_count(True)) if kind == 4
                else RcssSoccer(players, see_period=see_period or 1, stamina=stamina,
                                goalie=goalie))
         params = env.default_params(

@@ -46,7 +46,6 @@ from elevens.robocup.skills.decode import (
     shirt_numbers,
 )
 from elevens.robocup.skills.team import (
-    REACH_FEATURES,
     SkillsNaiveTeam,
     SkillsRandomTeam,
     ball_kind_mask,
@@ -54,6 +53,7 @@ from elevens.robocup.skills.team import (
     nearest_kind_mask,
     random_actions,
     reach_features,
+    self_feature_count,
 )
 from elevens.teams.registry import register_team
 from elevens.train.config import (
@@ -284,7 +284,7 @@ class SkillsEnvConfig(RcssEnvConfig):
 
     @property
     def self_features(self) -> int:
-        return super().self_features + len(REACH_FEATURES) * bool(self.reach_features)
+        return self_feature_count(self.reach_features)
 
     def check(self) -> None:
         super().check()

@@ -41,7 +41,7 @@ from elevens.robocup.skills.observe import PLAYERS, observe
 from elevens.robocup.skills.observe import Observation as SkillObservation
 from elevens.robocup.skills.set_plays import TakerGuard, check_set_plays
 from elevens.robocup.skills.space import Decisions, to_player_actions
-from elevens.robocup.skills.team import REACH_FEATURES, SKILLS_FIELD, reach_features
+from elevens.robocup.skills.team import SKILLS_FIELD, reach_features, self_feature_count
 from elevens.teams.scripted import Field
 
 __all__ = [
@@ -311,8 +311,7 @@ class LearnedSkills:
         """Compile the policy call (one shape for every batch) before a match; nobody's
         memory changes."""
         leaves: dict[str, Any] = dict(
-            self_features=np.zeros(
-                (PLAYERS, len(SELF_FEATURES) + self.reach * len(REACH_FEATURES)), np.float32),
+            self_features=np.zeros((PLAYERS, self_feature_count(self.reach)), np.float32),
             entities=np.zeros((PLAYERS, _SLOTS, len(ENTITY_FEATURES)), np.float32),
             entity_mask=np.ones((PLAYERS, _SLOTS), bool),
         )
@@ -362,7 +361,7 @@ def trained_reach(spec: str) -> bool:
     from elevens.runs.teams import trained_config
 
     config = trained_config(spec)
-    return bool(getattr(config.learner.env, "reach_features", False)) if config else False
+    return config is not None and config.learner.env.self_features == self_feature_count(True)
 
 
 def load_learned_skills(spec: str, *, deterministic: bool = True, warm: bool = True,

@@ -43,7 +43,7 @@ from elevens.robocup.skills.observe import PLAYERS, observe
 from elevens.robocup.skills.observe import Observation as SkillObservation
 from elevens.robocup.skills.set_plays import TakerGuard, check_set_plays
 from elevens.robocup.skills.space import to_player_actions
-from elevens.robocup.skills.team import REACH_FEATURES, SKILLS_FIELD
+from elevens.robocup.skills.team import SKILLS_FIELD, self_feature_count
 from elevens.teams.scripted import Field
 from elevens.train.rollout import Rollout, StepRecord, Teacher, collected
 
@@ -209,11 +209,10 @@ class Recorder:
 
     def warm_up(self) -> None:
         """Compile the policy call before a match (nobody's memory changes)."""
-        from elevens.env.state import ENTITY_FEATURES, SELF_FEATURES
+        from elevens.env.state import ENTITY_FEATURES
 
         leaves: dict[str, Any] = dict(
-            self_features=np.zeros(
-                (1, PLAYERS, len(SELF_FEATURES) + self.reach * len(REACH_FEATURES)), np.float32),
+            self_features=np.zeros((1, PLAYERS, self_feature_count(self.reach)), np.float32),
             entities=np.zeros((1, PLAYERS, 2 * PLAYERS, len(ENTITY_FEATURES)), np.float32),
             entity_mask=np.ones((1, PLAYERS, 2 * PLAYERS), bool),
         )

@@ -39,7 +39,8 @@ from elevens.teams.scripted import Field
 
 __all__ = [
     "REACH_FEATURES", "SkillsNaiveTeam", "SkillsRandomTeam", "ball_kind_mask", "first_kind_mask",
-    "nearest_kind_mask", "random_actions", "reach_features", "skill_observation",
+    "nearest_kind_mask", "random_actions", "reach_features", "self_feature_count",
+    "skill_observation",
 ]
 
 SKILLS_FIELD = Field.of(rcss_field())
@@ -49,6 +50,12 @@ SKILLS_FIELD = Field.of(rcss_field())
 #: it): cycles for this player, the fastest other teammate and the fastest opponent to reach
 #: the ball, over ``controllers.HORIZON + 1`` (1: not within the horizon).
 REACH_FEATURES = ("self_reach", "mate_reach", "opp_reach")
+
+
+def self_feature_count(reach: bool) -> int:
+    """The self features of a skills policy's observation: ``SELF_FEATURES``, then with
+    ``reach`` (``env.reach_features``) :data:`REACH_FEATURES`."""
+    return len(SELF_FEATURES) + len(REACH_FEATURES) * bool(reach)
 
 
 def reach_features(self_reach: Any, mate_reach: Any, opp_reach: Any, xp: Any = np) -> Any:
@@ -73,14 +80,10 @@ def ball_kind_mask(obs: Observation, field: Field = SKILLS_FIELD,
     return kickable[..., None] == (jnp.arange(OPEN_KINDS) <= Kind.HOLD)
 
 
-def nearest_kind_mask(obs: Observation, field: Field = SKILLS_FIELD,
-                      params: Any = DEFAULT) -> jax.Array:
-    """``network.kind_mask='ball_nearest'``: ``ball_kind_mask``, and without the ball in reach
-    the player nearest the ball of its team (as it sees itself and its teammates) may only run
-    at it (INTERCEPT, TACKLE), any other only take a place (GO_TO, MARK): who goes to the ball
-    is the rule's (by distance, where ``skills_naive`` reads librcsc's intercept table), what
-    each player does in its group the policy's."""
-    e, seen = obs.entities, obs.entity_mask
+def _mate_ball_gaps(obs: Observation, field: Field) -> jax.Array:
+    """f32[..., n - 1]: each teammate's distance to the ball, from the player's entity slots
+    (its own is the ball slot's distance); an unseen slot's value is meaningless."""
+    e = obs.entities
     scale = 2.0 * field.half_length
 
     def where(slot: Any) -> jax.Array:  # [..., k, 2] in the player's heading frame
@@ -89,16 +92,32 @@ def nearest_kind_mask(obs: Observation, field: Field = SKILLS_FIELD,
             [e[..., slot, _E["cos_bearing"]], e[..., slot, _E["sin_bearing"]]], axis=-1)
 
     n = e.shape[-2] // 2
-    ball = where(slice(-1, None))  # [..., 1, 2]
-    mates = where(slice(0, n - 1))  # [..., n - 1, 2]
-    mate_gap = jnp.sqrt(jnp.sum((mates - ball) ** 2, axis=-1))
-    mate_gap = jnp.where(seen[..., : n - 1], mate_gap, jnp.inf)
-    own_gap = e[..., -1, _E["distance"]] * scale
-    nearest = seen[..., -1] & (own_gap <= jnp.min(mate_gap, axis=-1, initial=jnp.inf))
-    runs = (jnp.arange(OPEN_KINDS) == Kind.INTERCEPT) | (jnp.arange(OPEN_KINDS) == Kind.TACKLE)
-    off_ball = jnp.where(nearest[..., None], runs, ~runs & (jnp.arange(OPEN_KINDS) > Kind.HOLD))
+    return jnp.sqrt(jnp.sum((where(slice(0, n - 1)) - where(slice(-1, None))) ** 2, axis=-1))
+
+
+def _runner_mask(runner: jax.Array, obs: Observation, field: Field, params: Any) -> jax.Array:
+    """``ball_kind_mask``, and without the ball in reach the ``runner`` (bool[...]) may only run
+    at it (INTERCEPT, TACKLE), any other player only take a place (GO_TO, MARK)."""
+    kinds = jnp.arange(OPEN_KINDS)
+    runs = (kinds == Kind.INTERCEPT) | (kinds == Kind.TACKLE)
+    off_ball = jnp.where(runner[..., None], runs, ~runs & (kinds > Kind.HOLD))
     ball_mask = ball_kind_mask(obs, field, params)
     return jnp.where(ball_mask[..., :1], ball_mask, off_ball)
+
+
+def nearest_kind_mask(obs: Observation, field: Field = SKILLS_FIELD,
+                      params: Any = DEFAULT) -> jax.Array:
+    """``network.kind_mask='ball_nearest'``: ``ball_kind_mask``, and without the ball in reach
+    the player nearest the ball of its team (as it sees itself and its teammates) may only run
+    at it (INTERCEPT, TACKLE), any other only take a place (GO_TO, MARK): who goes to the ball
+    is the rule's (by distance, where ``skills_naive`` reads librcsc's intercept table), what
+    each player does in its group the policy's."""
+    seen = obs.entity_mask
+    n = seen.shape[-1] // 2
+    mate_gap = jnp.where(seen[..., : n - 1], _mate_ball_gaps(obs, field), jnp.inf)
+    own_gap = obs.entities[..., -1, _E["distance"]] * (2.0 * field.half_length)
+    nearest = seen[..., -1] & (own_gap <= jnp.min(mate_gap, axis=-1, initial=jnp.inf))
+    return _runner_mask(nearest, obs, field, params)
 
 
 def first_kind_mask(obs: Observation, field: Field = SKILLS_FIELD,
@@ -108,30 +127,18 @@ def first_kind_mask(obs: Observation, field: Field = SKILLS_FIELD,
     table (``REACH_FEATURES``: its own cycles at most its fastest teammate's) while no teammate
     has it in reach may only run at it (INTERCEPT, TACKLE), any other only take a place
     (GO_TO, MARK): ``skills_naive``'s rule of who goes to the ball."""
-    width = len(SELF_FEATURES) + len(REACH_FEATURES)
+    width = self_feature_count(reach=True)
     if obs.self_features.shape[-1] != width:
         raise ValueError(
             "network.kind_mask='ball_first' reads the intercept table: it needs "
             f"--env.reach-features (self features: {obs.self_features.shape[-1]}, not {width})"
         )
-    e, seen = obs.entities, obs.entity_mask
-    scale = 2.0 * field.half_length
-
-    def where(slot: Any) -> jax.Array:  # [..., k, 2] in the player's heading frame
-        d = e[..., slot, _E["distance"]] * scale
-        return d[..., None] * jnp.stack(
-            [e[..., slot, _E["cos_bearing"]], e[..., slot, _E["sin_bearing"]]], axis=-1)
-
-    n = e.shape[-2] // 2
-    mate_gap = jnp.sqrt(jnp.sum((where(slice(0, n - 1)) - where(slice(-1, None))) ** 2, axis=-1))
+    seen = obs.entity_mask
+    n = seen.shape[-1] // 2
     mate_has_it = jnp.any(seen[..., : n - 1] & seen[..., -1:]
-                          & (mate_gap <= params.kickable_distance), axis=-1)
+                          & (_mate_ball_gaps(obs, field) <= params.kickable_distance), axis=-1)
     own, mate = (obs.self_features[..., len(SELF_FEATURES) + i] for i in range(2))
-    first = (own <= mate) & ~mate_has_it
-    runs = (jnp.arange(OPEN_KINDS) == Kind.INTERCEPT) | (jnp.arange(OPEN_KINDS) == Kind.TACKLE)
-    off_ball = jnp.where(first[..., None], runs, ~runs & (jnp.arange(OPEN_KINDS) > Kind.HOLD))
-    ball_mask = ball_kind_mask(obs, field, params)
-    return jnp.where(ball_mask[..., :1], ball_mask, off_ball)
+    return _runner_mask((own <= mate) & ~mate_has_it, obs, field, params)
 
 
 def _slot_tables(n: int) -> tuple[np.ndarray, np.ndarray]:

@@ -11,7 +11,8 @@
 # it had. Try 1 (docs/results/robustness.md) also randomised every game of both stages
 # (--env.randomize.enabled) and ended near 0.66 against naive; RANDOMIZE=1 randomises stage 2 as it did.
 # MIX="team=share ..." replaces the fixed opponents' shares (try 3: counter=0.10 and
-# elevens-11v11=0.25, the other panel teams 0.05 each).
+# elevens-11v11=0.25, the other panel teams 0.05 each). SEED=N sets --run.seed (default 0; try 5
+# is try 2 with SEED=1, to see how far two seeds of one recipe differ).
 # The stage resumes with --resume, so re-running the script after an interruption goes on where
 # it stopped. One core (taskset -c CORE), niced, like the shipped team's recipe.
 #
@@ -40,6 +41,7 @@ run 11v11 $(resume_flag "$runs/stage2") --no-progress \
   --ppo.advantage-estimator gae --ppo.normalize-advantages --ppo.entropy-weight 1e-3 \
   --opponent.polyak-tau 0.05 --env.no-shaping-schedule --env.approach-shaping-weight 0 \
   "${randomize[@]}" "${mix[@]}" \
+  --run.seed "${SEED:-0}" \
   --run.eval-every 20 --run.eval-games 50 --run.eval-teams naive teamwork counter
 
 "$elevens" export-team "$runs/stage2" --out "$runs/export/elevens-robust"

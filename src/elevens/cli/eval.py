@@ -201,7 +201,7 @@ def _teams_and_env(
     (the server's field unless the checkpoints trained on another)."""
     from elevens.robocup.bodies import RcssSoccer
     from elevens.robocup.skills.game import SkillSoccer
-    from elevens.robocup.skills.team import self_feature_count
+    from elevens.robocup.skills.team import DEFER, self_feature_count
     from elevens.runs.teams import check_team_size, common_field, fit_to_field
 
     games = {12: ("the 12-value RoboCup action", RcssSoccer),
@@ -229,8 +229,10 @@ def _teams_and_env(
         # others read the features before it.
         wide = max((getattr(team.policy, "self_features", None) or 0 for team in every),
                    default=0)
+        # A policy with the DEFER kind needs the game that plays it (the others never give it).
+        defer = any(getattr(team.policy, "kinds", 0) == DEFER + 1 for team in every)
         env = (SkillSoccer(players, see_period=see_period or 1, stamina=stamina, goalie=goalie,
-                           reach=wide == self_feature_count(True)) if kind == 4
+                           reach=wide == self_feature_count(True), defer=defer) if kind == 4
                else RcssSoccer(players, see_period=see_period or 1, stamina=stamina,
                                goalie=goalie))
         params = env.default_params(

@@ -281,7 +281,11 @@ class AttentionPolicy(nn.Module):
     with K kinds (needs attention, and ``num_actions`` 4)."""
     kind_mask: str = ""
     """The parametrised head only: a name of ``KIND_MASKS``, whose function of the observation
-    says which kinds each player may choose (the others get ``MASKED_LOGIT``); '': every kind."""
+    says which kinds each player may choose (the others get ``MASKED_LOGIT``); '': every kind.
+    Kinds after the mask's own (a game's extra kind, e.g. the skill game's DEFER) are allowed."""
+    last_kind_logit: float = 0.0
+    """The parametrised head only: a constant added to the last kind's logit, a prior the
+    network learns around (the skill game's DEFER: how often an untrained policy defers)."""
 
     def setup(self) -> None:
         if self.kinds and (not self.use_attention or self.num_actions != PARAMETRISED_ACTIONS):
@@ -397,8 +401,15 @@ class AttentionPolicy(nn.Module):
         in_view = obs.entity_mask[..., : obs.entity_mask.shape[-1] - 1]
         target = self.target_head(y).reshape(*lead, kinds, 4)
         kind_logits = self.kind_head(y)
+        if self.last_kind_logit:
+            kind_logits = kind_logits.at[..., -1].add(self.last_kind_logit)
         if self.kind_mask:
-            kind_logits = jnp.where(KIND_MASKS[self.kind_mask](obs), kind_logits, MASKED_LOGIT)
+            allowed = KIND_MASKS[self.kind_mask](obs)
+            extra = kinds - allowed.shape[-1]
+            if extra:
+                allowed = jnp.concatenate(
+                    [allowed, jnp.ones((*allowed.shape[:-1], extra), bool)], axis=-1)
+            kind_logits = jnp.where(allowed, kind_logits, MASKED_LOGIT)
         return ParametrisedOutput(
             kind_logits=kind_logits,
             pointer_logits=jnp.where(in_view[..., None, :], pointer_logits, MASKED_LOGIT),

@@ -126,6 +126,12 @@ class EnvConfig:
         simulator's (move, rot)."""
         return Soccer.actions
 
+    @property
+    def kinds(self) -> int | None:
+        """The kinds of this game's parametrised decision, which ``network.kinds`` must match;
+        None: the game sets none (the simulator's action is continuous)."""
+        return None
+
     def check(self) -> None:
         """The checks of this game's own fields (the subclasses' extra ones); raises
         ``ValueError`` naming the first bad one."""
@@ -169,7 +175,7 @@ PARAMETRISED_ACTIONS = 4
 # without a warning.
 _SILENT_DEFAULTS = (
     "learner.network.actions", "learner.network.head", "learner.network.kinds",
-    "learner.network.kind_mask",
+    "learner.network.kind_mask", "learner.network.last_kind_logit", "learner.env.defer",
     "learner.env.physics", "learner.env.see_period",
     "learner.env.stamina", "learner.env.goalie", "learner.env.reach_features",
     "learner.env.game.possession_shaping_weight",
@@ -213,6 +219,10 @@ class NetworkConfig:
     """The parametrised head: which kinds a player may choose in each situation, a mask its game
     registers (``nets.policy.KIND_MASKS``; the skill game's 'ball': the ball kinds with the
     ball within kicking reach, the others without); '': every kind, always."""
+    last_kind_logit: float = 0.0
+    """The parametrised head: a constant added to the last kind's logit. With the skill game's
+    ``env.defer``, how strongly an untrained policy defers to ``skills_naive`` (6: about 98%
+    of its draws against 8 other kinds near uniform; its mode defers)."""
 
     def policy(self) -> Any:
         """The ``AttentionPolicy`` module of this config."""
@@ -228,6 +238,7 @@ class NetworkConfig:
             num_actions=self.actions,
             kinds=self.kinds if self.head == "parametrised" else 0,
             kind_mask=self.kind_mask if self.head == "parametrised" else "",
+            last_kind_logit=self.last_kind_logit if self.head == "parametrised" else 0.0,
         )
 
     def critic(self) -> Any:
@@ -889,6 +900,13 @@ def validate_training(learner: LearnerConfig) -> None:
     _require(isinstance(learner, LearnerConfig), f"expected a LearnerConfig, got {type(learner)}")
     _validate_env(learner.env)
     _validate_network(learner.network)
+    game_kinds = learner.env.kinds
+    if learner.network.head == "parametrised" and game_kinds is not None:
+        _require(
+            learner.network.kinds == game_kinds,
+            f"network.kinds={learner.network.kinds!r} is invalid with this game: its decision "
+            f"has {game_kinds} kinds (set network.kinds={game_kinds})",
+        )
     _int_at_least("games_per_iteration", learner.games_per_iteration, 1)
     _int_at_least("iterations_per_chunk", learner.iterations_per_chunk, 1)
     _validate_ppo(learner)
@@ -1078,6 +1096,13 @@ def _validate_network(network: NetworkConfig) -> None:
             "network.head='parametrised': its pointer attends over the attention encoder's "
             "per-entity embeddings",
         )
+        _require(
+            isinstance(network.last_kind_logit, (int, float))
+            and not isinstance(network.last_kind_logit, bool)
+            and math.isfinite(network.last_kind_logit),
+            f"network.last_kind_logit={network.last_kind_logit!r} is invalid: it must be a "
+            "finite number",
+        )
         if network.kind_mask:
             from elevens.nets.policy import KIND_MASKS
 
@@ -1096,6 +1121,11 @@ def _validate_network(network: NetworkConfig) -> None:
             network.kinds == 0,
             f"network.kinds={network.kinds!r} is invalid with network.head='gaussian': kinds "
             "belong to network.head='parametrised' (leave it 0)",
+        )
+        _require(
+            network.last_kind_logit == 0,
+            f"network.last_kind_logit={network.last_kind_logit!r} is invalid with "
+            "network.head='gaussian': it shifts the parametrised head's last kind (leave it 0)",
         )
 
 

@@ -45,7 +45,7 @@ from elevens.robocup.skills.proxy import find_proxy, proxy_command
 from elevens.robocup.skills.record import Recorder, pack, teacher_actions
 from elevens.robocup.skills.runtime import DecisionServer
 from elevens.robocup.skills.set_plays import check_set_plays
-from elevens.robocup.skills.team import self_feature_count
+from elevens.robocup.skills.team import DEFER, self_feature_count
 from elevens.robocup.train import ROBOCUP_CONFIG_JSON, ROBOCUP_RUN
 from elevens.runs.layout import RunLayout
 from elevens.runs.loop import Collect, HostGames, TrainResult, train
@@ -289,7 +289,8 @@ class SkillGames:
                 recorder = Recorder(learner.policy, seed=config.run.seed + g,
                                     hold_s=server.hold_ms / 1e3, set_plays=server.set_plays,
                                     reach=config.learner.env.self_features
-                                    == self_feature_count(True))
+                                    == self_feature_count(True),
+                                    defer=config.learner.env.kinds == DEFER + 1)
                 decision = stack.enter_context(DecisionServer(
                     recorder, players=PLAYERS, deadline_s=server.deadline_ms / 1e3,
                     gather_s=server.gather_ms / 1e3, on_default=recorder.defaulted))

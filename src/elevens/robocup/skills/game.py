@@ -49,6 +49,7 @@ from elevens.robocup.skills.team import (
     SkillsNaiveTeam,
     SkillsRandomTeam,
     ball_kind_mask,
+    deferred,
     first_kind_mask,
     nearest_kind_mask,
     random_actions,
@@ -56,6 +57,7 @@ from elevens.robocup.skills.team import (
     self_feature_count,
 )
 from elevens.teams.registry import register_team
+from elevens.teams.scripted import Field
 from elevens.train.config import (
     EnvConfig,
     LearnerConfig,
@@ -81,7 +83,9 @@ class SkillSoccer(RcssSoccer):
     layout and its fallbacks in ``elevens.robocup.skills.decode``); the rest is
     ``RcssSoccer``'s, with tackles (``ball_pushes``). With ``reach`` each player's self
     features end with ``team.REACH_FEATURES`` (:meth:`reach_table`), as the server runtime
-    reads them from librcsc's intercept table."""
+    reads them from librcsc's intercept table. With ``defer`` a ninth kind, ``team.DEFER``,
+    plays what ``skills_naive`` decides for that player on its observation of the state
+    (``team.deferred``), as the server runtime does."""
 
     actions: int = SKILL_ACTION_SIZE
     kickers: int | None = controllers.KICKERS
@@ -89,9 +93,16 @@ class SkillSoccer(RcssSoccer):
     kind of a farther player in kicking reach intercepts (None: every player in reach)."""
 
     def __init__(self, players_per_team: int = 11, body: Any = DEFAULT, see_period: int = 1,
-                 stamina: bool = False, goalie: bool = False, reach: bool = False):
+                 stamina: bool = False, goalie: bool = False, reach: bool = False,
+                 defer: bool = False):
         super().__init__(players_per_team, body, see_period, stamina, goalie)
         self.reach = reach
+        self.defer = defer
+
+    @property
+    def kinds(self) -> int:
+        """The decision's kinds: the open-play ones, and ``DEFER`` with ``defer``."""
+        return OPEN_KINDS + int(self.defer)
 
     def default_params(self, **overrides: Any) -> EnvParams:
         return skills_field(self.players_per_team, **overrides)
@@ -126,14 +137,14 @@ class SkillSoccer(RcssSoccer):
         return self._with_reach(super().observe_noisy(state, params, key), state, params)
 
     def action_layout(self) -> str:
-        return f"(kind 0..7, pointer 0..{2 * self.players_per_team - 1}, x, y)"
+        return f"(kind 0..{self.kinds - 1}, pointer 0..{2 * self.players_per_team - 1}, x, y)"
 
     def applied(self, actions: jax.Array) -> jax.Array:
         """The actions f32[..., 2, n, 4] as the decode reads them: NaN counts as 0, the kind
-        clipped to 0..7, the pointer to 0..2n-1, (x, y) to [-1, 1] (not all to [-1, 1], which
-        would leave only SHOOT and PASS)."""
+        clipped to 0..7 (0..8 with ``defer``), the pointer to 0..2n-1, (x, y) to [-1, 1] (not
+        all to [-1, 1], which would leave only SHOOT and PASS)."""
         actions = jnp.where(jnp.isnan(actions), 0.0, actions)
-        top = jnp.array([OPEN_KINDS - 1, 2 * self.players_per_team - 1, 1.0, 1.0], actions.dtype)
+        top = jnp.array([self.kinds - 1, 2 * self.players_per_team - 1, 1.0, 1.0], actions.dtype)
         bottom = jnp.array([0.0, 0.0, -1.0, -1.0], actions.dtype)
         return jnp.clip(actions, bottom, top)
 
@@ -194,6 +205,10 @@ class SkillSoccer(RcssSoccer):
         """One server cycle: each player's skill decoded and its controller's command played."""
         self._check_params(params)
         self.check_actions(actions)
+        if self.defer:
+            naive = SkillsNaiveTeam(field=Field.of(params))
+            actions = jax.vmap(deferred, in_axes=(0, 0, None))(
+                actions, self.observe(state, params), naive)
         choice = self.decode(state, actions, params)
         m = self.num_players
         body = controllers.Bodies.of(
@@ -272,6 +287,11 @@ class SkillsEnvConfig(RcssEnvConfig):
     """Each player's self features end with librcsc's intercept table (``team.REACH_FEATURES``:
     cycles to the ball for itself, its fastest teammate and the fastest opponent), which the
     server runtime reads from the world model and ``skills_naive`` decides on."""
+    defer: bool = False
+    """The decision has a ninth kind, DEFER: ``skills_naive`` decides for that player (in the
+    simulator and in the server alike). A policy that defers where it has learned nothing
+    better starts at ``skills_naive``'s level (``network.kinds 9``, and
+    ``network.last_kind_logit`` for how often an untrained one defers)."""
 
     PHYSICS: ClassVar[str] = "skills"
     BODIES: ClassVar[type[RcssSoccer]] = SkillSoccer
@@ -279,8 +299,12 @@ class SkillsEnvConfig(RcssEnvConfig):
     def make_env(self, players_per_team: int) -> SkillSoccer:
         return SkillSoccer(
             players_per_team, see_period=self.see_period, stamina=self.stamina,
-            goalie=self.goalie, reach=self.reach_features,
+            goalie=self.goalie, reach=self.reach_features, defer=self.defer,
         )
+
+    @property
+    def kinds(self) -> int | None:
+        return OPEN_KINDS + (self.defer is True)
 
     @property
     def self_features(self) -> int:
@@ -288,10 +312,11 @@ class SkillsEnvConfig(RcssEnvConfig):
 
     def check(self) -> None:
         super().check()
-        if not isinstance(self.reach_features, bool):
-            raise ValueError(
-                f"env.reach_features={self.reach_features!r} is invalid: it must be True or False"
-            )
+        for name in ("reach_features", "defer"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(
+                    f"env.{name}={getattr(self, name)!r} is invalid: it must be True or False"
+                )
 
 
 def skills_config(preset: str, **overrides: Any) -> TrainConfig:

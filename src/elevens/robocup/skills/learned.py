@@ -41,7 +41,13 @@ from elevens.robocup.skills.observe import PLAYERS, observe
 from elevens.robocup.skills.observe import Observation as SkillObservation
 from elevens.robocup.skills.set_plays import TakerGuard, check_set_plays
 from elevens.robocup.skills.space import Decisions, to_player_actions
-from elevens.robocup.skills.team import SKILLS_FIELD, reach_features, self_feature_count
+from elevens.robocup.skills.team import (
+    SKILLS_FIELD,
+    SkillsNaiveTeam,
+    deferred,
+    reach_features,
+    self_feature_count,
+)
 from elevens.teams.scripted import Field
 
 __all__ = [
@@ -249,10 +255,12 @@ class LearnedSkills:
 
     def __init__(self, policy: Any, params: Any, *, name: str = "learned",
                  field: Field = SKILLS_FIELD, episode_length: int = MATCH_CLOCK,
-                 seed: int = 0, set_plays: str = "routine", reach: bool = False) -> None:
+                 seed: int = 0, set_plays: str = "routine", reach: bool = False,
+                 defer: bool = False) -> None:
         check_set_plays(set_plays)
         self.set_plays = set_plays
         self.reach = reach
+        self.defer = defer
         self.guard = TakerGuard()
         self.policy = policy
         self.params = params
@@ -272,6 +280,8 @@ class LearnedSkills:
     def _step(self, params: Any, carry: Any, obs: Observation, present: jax.Array,
               key: jax.Array) -> tuple[Any, jax.Array]:
         new, actions = self.policy.act(params, carry, obs, key)
+        if self.defer:
+            actions = deferred(actions, obs, SkillsNaiveTeam(field=self.field))
 
         def keep(fresh: jax.Array, old: jax.Array) -> jax.Array:
             asked = present.reshape(present.shape + (1,) * (fresh.ndim - 1))
@@ -355,6 +365,15 @@ def is_skills_team(spec: str) -> bool:
         return False
 
 
+def trained_defer(spec: str) -> bool:
+    """Whether the trained skills team ``spec`` may defer to ``skills_naive`` (``env.defer``,
+    read from its config)."""
+    from elevens.runs.teams import trained_config
+
+    config = trained_config(spec)
+    return config is not None and getattr(config.learner.env, "defer", False) is True
+
+
 def trained_reach(spec: str) -> bool:
     """Whether the trained skills team ``spec`` sees librcsc's intercept table
     (``env.reach_features``, read from its config)."""
@@ -376,7 +395,7 @@ def load_learned_skills(spec: str, *, deterministic: bool = True, warm: bool = T
     team = load_team(spec, deterministic=deterministic)
     team.check_size(PLAYERS, SKILL_ACTION_SIZE)
     decide = LearnedSkills(team.policy, team.params, name=team.name, set_plays=set_plays,
-                           reach=trained_reach(spec))
+                           reach=trained_reach(spec), defer=trained_defer(spec))
     if warm:
         decide.warm_up()
     return decide

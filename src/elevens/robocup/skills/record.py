@@ -43,7 +43,12 @@ from elevens.robocup.skills.observe import PLAYERS, observe
 from elevens.robocup.skills.observe import Observation as SkillObservation
 from elevens.robocup.skills.set_plays import TakerGuard, check_set_plays
 from elevens.robocup.skills.space import to_player_actions
-from elevens.robocup.skills.team import SKILLS_FIELD, self_feature_count
+from elevens.robocup.skills.team import (
+    SKILLS_FIELD,
+    SkillsNaiveTeam,
+    deferred,
+    self_feature_count,
+)
 from elevens.teams.scripted import Field
 from elevens.train.rollout import Rollout, StepRecord, Teacher, collected
 
@@ -122,9 +127,10 @@ class Recorder:
 
     def __init__(self, policy: Any, *, seed: int = 0, field: Field = SKILLS_FIELD,
                  episode_length: int = MATCH_CLOCK, hold_s: float = 0.0,
-                 set_plays: str = "routine", reach: bool = False) -> None:
+                 set_plays: str = "routine", reach: bool = False, defer: bool = False) -> None:
         check_set_plays(set_plays)
         self.reach = reach
+        self.defer = defer
         self.set_plays = set_plays
         self.guard = TakerGuard()
         self.policy = policy
@@ -200,12 +206,16 @@ class Recorder:
         distribution = output.distribution()
         sample = distribution.sample(key)
         log_prob = distribution.log_prob(sample.pre_tanh)
+        action = sample.action
+        if self.defer:  # played as skills_naive's, recorded (pre_tanh) as DEFER
+            one = jax.tree.map(lambda leaf: leaf[0], obs)
+            action = deferred(action[0], one, SkillsNaiveTeam(field=self.field))[None]
 
         def keep(fresh: jax.Array, old: jax.Array) -> jax.Array:
             asked = present.reshape(present.shape + (1,) * (fresh.ndim - 2))
             return jnp.where(asked, fresh, old)
 
-        return jax.tree.map(keep, new, carry), sample.action, sample.pre_tanh, log_prob
+        return jax.tree.map(keep, new, carry), action, sample.pre_tanh, log_prob
 
     def warm_up(self) -> None:
         """Compile the policy call before a match (nobody's memory changes)."""

@@ -38,7 +38,8 @@ from elevens.robocup.skills.space import Kind
 from elevens.teams.scripted import Field
 
 __all__ = [
-    "REACH_FEATURES", "SkillsNaiveTeam", "SkillsRandomTeam", "ball_kind_mask", "first_kind_mask",
+    "DEFER", "REACH_FEATURES", "SkillsNaiveTeam", "SkillsRandomTeam", "ball_kind_mask",
+    "deferred", "first_kind_mask",
     "nearest_kind_mask", "random_actions", "reach_features", "self_feature_count",
     "skill_observation",
 ]
@@ -63,6 +64,11 @@ def reach_features(self_reach: Any, mate_reach: Any, opp_reach: Any, xp: Any = n
     steps = xp.stack([self_reach, mate_reach, opp_reach], axis=-1).astype(xp.float32)
     horizon = controllers.HORIZON + 1
     return xp.clip(steps, 0.0, horizon) / horizon
+
+#: The kind after the open-play ones in a game with ``env.defer``: ``skills_naive`` decides.
+DEFER = OPEN_KINDS
+
+
 _S = {name: i for i, name in enumerate(SELF_FEATURES)}
 _E = {name: i for i, name in enumerate(ENTITY_FEATURES)}
 _PLAY_ON = 2
@@ -326,3 +332,12 @@ def random_actions(key: jax.Array, shape: tuple[int, ...]) -> jax.Array:
     kind = jnp.minimum(jnp.floor(u[..., 0] * OPEN_KINDS), OPEN_KINDS - 1)
     pointer = jnp.minimum(jnp.floor(u[..., 1] * 2 * n), 2 * n - 1)
     return jnp.concatenate([kind[..., None], pointer[..., None], 2.0 * u[..., 2:] - 1.0], axis=-1)
+
+
+def deferred(actions: jax.Array, obs: Observation, naive: SkillsNaiveTeam) -> jax.Array:
+    """One team's actions f32[n, 4] with every ``DEFER`` row replaced by what ``naive`` (a
+    ``SkillsNaiveTeam`` on the game's field) decides on the team's observation ``obs`` [n]
+    (its rows in shirt-number order, as the game and the server runtime's padded view hold
+    them)."""
+    defer = jnp.round(actions[..., 0]) == DEFER
+    return jnp.where(defer[..., None], naive.play(obs).astype(actions.dtype), actions)

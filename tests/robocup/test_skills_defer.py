@@ -1,0 +1,109 @@
+"""The DEFER kind (``env.defer``): a policy's player may leave its decision to
+``skills_naive``, in the simulator's skill game and in the server runtime alike."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import elevens.robocup  # noqa: F401 - registers the skill game and its teams
+from elevens.nets.policy import AttentionPolicy
+from elevens.robocup.skills.game import SkillSoccer, skills_config
+from elevens.robocup.skills.learned import LearnedSkills
+from elevens.robocup.skills.team import DEFER, SkillsNaiveTeam, deferred
+from elevens.teams.network import NetworkTeam
+
+
+def _play(env: SkillSoccer, home: Any, key: jax.Array, steps: int) -> Any:
+    """States of a game of ``home`` (obs -> actions f32[n, 4]) against ``skills_naive``."""
+    params = env.default_params(episode_length=steps + 1)
+    away = SkillsNaiveTeam()
+
+    def body(state: Any, k: jax.Array) -> tuple[Any, Any]:
+        obs = env.observe(state, params)
+        actions = jnp.stack([home(obs.team(0)), away.play(obs.team(1))])
+        state = env.step(k, state, actions, params)[0]
+        return state, (state.positions, state.ball_position)
+
+    return jax.jit(lambda k: jax.lax.scan(body, env.reset(k, params)[0],
+                                          jax.random.split(k, steps))[1])(key)
+
+
+def test_a_team_that_always_defers_plays_skills_naives_game_exactly() -> None:
+    naive = SkillsNaiveTeam()
+    n = 11
+    always = jnp.zeros((n, 4)).at[:, 0].set(DEFER)
+    key = jax.random.key(3)
+    deferring = _play(SkillSoccer(n, defer=True), lambda obs: always, key, 60)
+    scripted = _play(SkillSoccer(n), naive.play, key, 60)
+    # The same decisions; the two programs fuse the arithmetic differently (float rounding).
+    for a, b in zip(deferring, scripted, strict=True):
+        np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=0, atol=1e-4)
+    # Without the flag the same actions are another game (kind 8 clipped to TACKLE).
+    clipped = _play(SkillSoccer(n), lambda obs: always, key, 60)
+    assert not np.array_equal(np.asarray(clipped[1]), np.asarray(scripted[1]))
+
+
+def test_deferred_replaces_only_the_deferring_rows() -> None:
+    env = SkillSoccer(11, defer=True)
+    params = env.default_params()
+    obs = env.observe(env.reset(jax.random.key(0), params)[0], params).team(0)
+    own = jnp.tile(jnp.array([[5.0, 0.0, 0.3, -0.2]]), (11, 1)).at[::3, 0].set(DEFER)
+    out = np.asarray(deferred(own, obs, SkillsNaiveTeam()))
+    naive = np.asarray(SkillsNaiveTeam().play(obs))
+    rows = np.arange(11) % 3 == 0
+    np.testing.assert_array_equal(out[rows], naive[rows])
+    np.testing.assert_array_equal(out[~rows], np.asarray(own)[~rows])
+
+
+def test_the_last_kind_prior_makes_an_untrained_policy_defer_and_masks_leave_it_open() -> None:
+    env = SkillSoccer(11, defer=True, reach=True)
+    params = env.default_params()
+    obs = env.observe(env.reset(jax.random.key(1), params)[0], params).team(0)
+    policy = AttentionPolicy(num_actions=4, kinds=9, kind_mask="ball_first", last_kind_logit=6.0)
+    variables = policy.init(jax.random.key(0), policy.initial_carry((11,)), obs,
+                            jnp.zeros(11, bool))
+    _, out = policy.apply(variables, policy.initial_carry((11,)), obs, jnp.zeros(11, bool))
+    p = jax.nn.softmax(out.distribution().kind_logits, axis=-1)
+    assert p.shape == (11, 9)
+    assert float(jnp.min(p[:, DEFER])) > 0.95
+    team = NetworkTeam(policy=policy, deterministic=True)
+    actions = team.act(variables, team.init_carry(11), obs, jax.random.key(2))[1]
+    assert np.all(np.asarray(actions)[:, 0] == DEFER)
+
+
+def test_the_runtime_plays_skills_naives_decision_for_a_deferring_player() -> None:
+    # The server runtime's policy step on its padded 11-player view: DEFER rows become
+    # skills_naive's actions there too, the others stay the policy's.
+    env = SkillSoccer(11, defer=True)
+    params = env.default_params()
+    obs = env.observe(env.reset(jax.random.key(5), params)[0], params).team(0)
+
+    class HalfDefer:
+        def init_carry(self, n: int) -> Any:
+            return jnp.zeros((n,))
+
+        def act(self, params: Any, carry: Any, obs: Any, key: jax.Array) -> Any:
+            acts = jnp.tile(jnp.array([[5.0, 0.0, 0.1, 0.1]]), (11, 1))
+            return carry, acts.at[:5, 0].set(DEFER)
+
+    decide = LearnedSkills(HalfDefer(), None, defer=True)
+    _, acts = decide._act(None, decide.carry, obs, np.ones(11, bool), jax.random.key(0))
+    naive = np.asarray(SkillsNaiveTeam().play(obs))
+    np.testing.assert_array_equal(np.asarray(acts)[:5], naive[:5])
+    assert np.all(np.asarray(acts)[5:, 0] == 5.0)
+
+
+def test_defer_needs_the_ninth_kind_and_is_refused_in_one_line() -> None:
+    with pytest.raises(ValueError, match=r"network.kinds=8 is invalid with this game: its "
+                                         r"decision has 9 kinds \(set network.kinds=9\)"):
+        skills_config("2v2", **{"env.defer": True})
+    config = skills_config("2v2", **{"env.defer": True, "network.kinds": 9,
+                                     "network.last_kind_logit": 6.0})
+    assert config.learner.make_env().kinds == 9
+    with pytest.raises(ValueError, match=r"network.last_kind_logit=nan is invalid"):
+        skills_config("2v2", **{"network.last_kind_logit": float("nan")})

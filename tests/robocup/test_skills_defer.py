@@ -18,32 +18,35 @@ from elevens.robocup.skills.team import DEFER, SkillsNaiveTeam, deferred
 from elevens.teams.network import NetworkTeam
 
 
-def _play(env: SkillSoccer, home: Any, key: jax.Array, steps: int) -> Any:
-    """States of a game of ``home`` (obs -> actions f32[n, 4]) against ``skills_naive``."""
-    params = env.default_params(episode_length=steps + 1)
-    away = SkillsNaiveTeam()
-
-    def body(state: Any, k: jax.Array) -> tuple[Any, Any]:
-        obs = env.observe(state, params)
-        actions = jnp.stack([home(obs.team(0)), away.play(obs.team(1))])
-        state = env.step(k, state, actions, params)[0]
-        return state, (state.positions, state.ball_position)
-
-    return jax.jit(lambda k: jax.lax.scan(body, env.reset(k, params)[0],
-                                          jax.random.split(k, steps))[1])(key)
-
-
 def test_a_team_that_always_defers_plays_skills_naives_game_exactly() -> None:
-    naive = SkillsNaiveTeam()
+    # Two games from one state in one program: team 0 gives DEFER everywhere in the first and
+    # skills_naive's own actions in the second; team 1 is skills_naive in both.
     n = 3
+    env = SkillSoccer(n, defer=True)
+    params = env.default_params(episode_length=100)
+    naive = SkillsNaiveTeam()
     always = jnp.zeros((n, 4)).at[:, 0].set(DEFER)
-    key = jax.random.key(3)
-    deferring = _play(SkillSoccer(n, defer=True), lambda obs: always, key, 80)
-    scripted = _play(SkillSoccer(n), naive.play, key, 80)
-    # The same decisions; the two programs fuse the arithmetic differently (float rounding).
-    for a, b in zip(deferring, scripted, strict=True):
-        np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=0, atol=1e-4)
-    assert np.ptp(np.asarray(scripted[1]), axis=0).max() > 1.0  # the ball was played
+
+    def actions(state: Any, deferring: jax.Array) -> jax.Array:
+        obs = env.observe(state, params)
+        own = jnp.where(deferring, always, naive.play(obs.team(0)))
+        return jnp.stack([own, naive.play(obs.team(1))])
+
+    def body(states: Any, key: jax.Array) -> tuple[Any, Any]:
+        acts = jax.vmap(actions)(states, jnp.array([True, False]))
+        states = jax.vmap(env.transition, in_axes=(None, 0, 0, None))(key, states, acts, params)[0]
+        return states, (states.positions, states.ball_position)
+
+    def game(key: jax.Array) -> Any:
+        start = env.reset(key, params)[0]
+        states = jax.tree.map(lambda leaf: jnp.stack([leaf, leaf]), start)
+        return jax.lax.scan(body, states, jax.random.split(key, 80))[1]
+
+    positions, ball = jax.jit(game)(jax.random.key(3))
+    # The same decisions; the two games' arithmetic may round apart in the last bit.
+    np.testing.assert_allclose(np.asarray(positions[:, 0]), np.asarray(positions[:, 1]), atol=1e-4)
+    np.testing.assert_allclose(np.asarray(ball[:, 0]), np.asarray(ball[:, 1]), atol=1e-4)
+    assert np.ptp(np.asarray(ball[:, 0]), axis=0).max() > 1.0  # the ball was played
     # Without the flag kind 8 is no kind of the game: it reads as TACKLE (7).
     assert np.all(np.asarray(SkillSoccer(n).applied(always))[:, 0] == 7)
 
@@ -69,14 +72,18 @@ def test_the_last_kind_prior_makes_an_untrained_policy_defer_and_masks_leave_it_
     policy = AttentionPolicy(features=16, num_heads=2, lstm_features=8, num_actions=4, kinds=9,
                              kind_mask="ball_first", last_kind_logit=6.0)
     carry, reset = policy.initial_carry((11,)), jnp.zeros(11, bool)
-    variables = jax.jit(policy.init)(jax.random.key(0), carry, obs, reset)
-    logits = jax.jit(lambda v: policy.apply(v, carry, obs, reset)[1].distribution().kind_logits)
-    p = jax.nn.softmax(logits(variables), axis=-1)
+    team = NetworkTeam(policy=policy, deterministic=True)
+
+    def untrained(key: jax.Array) -> tuple[jax.Array, jax.Array]:
+        variables = policy.init(key, carry, obs, reset)
+        logits = policy.apply(variables, carry, obs, reset)[1].distribution().kind_logits
+        return logits, team.act(variables, carry, obs, key)[1]
+
+    logits, actions = jax.jit(untrained)(jax.random.key(0))
+    p = jax.nn.softmax(logits, axis=-1)
     assert p.shape == (11, 9)
     assert float(jnp.min(p[:, DEFER])) > 0.95
-    team = NetworkTeam(policy=policy, deterministic=True)
-    actions = jax.jit(team.act)(variables, team.init_carry(11), obs, jax.random.key(2))[1]
-    assert np.all(np.asarray(actions)[:, 0] == DEFER)
+    assert np.all(np.asarray(actions)[:, 0] == DEFER)  # the mode defers
 
 
 def test_the_runtime_plays_skills_naives_decision_for_a_deferring_player() -> None:

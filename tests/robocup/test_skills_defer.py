@@ -118,3 +118,26 @@ def test_defer_needs_the_ninth_kind_and_is_refused_in_one_line() -> None:
     assert config.learner.make_env().kinds == 9
     with pytest.raises(ValueError, match=r"network.last_kind_logit=nan is invalid"):
         skills_config("2v2", **{"network.last_kind_logit": float("nan")})
+
+
+def test_server_fine_tuning_records_defer_and_plays_skills_naives_action() -> None:
+    # The recorder of server fine-tuning: PPO's sample (pre_tanh, log-probability) keeps the
+    # DEFER kind the policy drew; the action played is skills_naive's on the same view.
+    from elevens.robocup.skills.record import Recorder
+
+    env = SkillSoccer(11, defer=True)
+    params = env.default_params()
+    obs = jax.jit(lambda k: env.observe(env.reset(k, params)[0], params).team(0))(
+        jax.random.key(6))
+    policy = AttentionPolicy(features=16, num_heads=2, lstm_features=8, num_actions=4, kinds=9,
+                             last_kind_logit=60.0)  # every draw defers
+    carry = policy.initial_carry((1, 11))
+    one = jax.tree.map(lambda leaf: leaf[None], obs)
+    variables = jax.jit(policy.init)(jax.random.key(0), carry, one, jnp.zeros((1, 11), bool))
+    recorder = Recorder(policy, defer=True)
+    _, action, raw, log_prob = recorder._step(variables, carry, one, np.ones((1, 11), bool),
+                                              jax.random.key(1))
+    assert np.all(np.asarray(raw)[0, :, 0] == DEFER)
+    assert np.all(np.asarray(log_prob) > -60.0)  # finite: the kind's share is ~1
+    naive = np.asarray(jax.jit(SkillsNaiveTeam().play)(obs))
+    np.testing.assert_array_equal(np.asarray(action)[0], naive)

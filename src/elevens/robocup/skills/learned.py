@@ -42,6 +42,7 @@ from elevens.robocup.skills.observe import Observation as SkillObservation
 from elevens.robocup.skills.set_plays import TakerGuard, check_set_plays
 from elevens.robocup.skills.space import Decisions, to_player_actions
 from elevens.robocup.skills.team import (
+    DEFER,
     SKILLS_FIELD,
     SkillsNaiveTeam,
     deferred,
@@ -371,7 +372,7 @@ def trained_defer(spec: str) -> bool:
     from elevens.runs.teams import trained_config
 
     config = trained_config(spec)
-    return config is not None and getattr(config.learner.env, "defer", False) is True
+    return config is not None and config.learner.env.kinds == DEFER + 1
 
 
 def trained_reach(spec: str) -> bool:

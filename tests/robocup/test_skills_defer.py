@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import jax
@@ -141,3 +142,26 @@ def test_server_fine_tuning_records_defer_and_plays_skills_naives_action() -> No
     assert np.all(np.asarray(log_prob) > -60.0)  # finite: the kind's share is ~1
     naive = np.asarray(jax.jit(SkillsNaiveTeam().play)(obs))
     np.testing.assert_array_equal(np.asarray(action)[0], naive)
+
+
+def test_a_trained_deferring_team_defers_in_the_server_runtime_and_the_tournament(
+        tmp_path: Path) -> None:
+    # Its config says DEFER: the runtime resolves it, and a tournament beside skills_naive plays
+    # the DEFER game (else kind 8 would read as TACKLE).
+    from elevens.cli.eval import _teams_and_env
+    from elevens.robocup.skills import skills_policy
+    from elevens.train.checkpoint import Checkpointer
+    from elevens.train.learner import make_learner
+    from tests.robocup.test_skills_learned import TINY
+
+    config = skills_config("2v2", **{**TINY, "run.run_dir": str(tmp_path), "env.defer": True,
+                                     "network.kinds": 9, "network.last_kind_logit": 6.0})
+    state = make_learner(config.learner, config.learner.make_env()).init(jax.random.key(3))
+    with Checkpointer(tmp_path / "checkpoints") as checkpointer:
+        checkpointer.save(0, state, config.to_dict(), {"iteration": 0})
+    decide = skills_policy(str(tmp_path))
+    assert isinstance(decide, LearnedSkills) and decide.defer
+    _, env, _ = _teams_and_env(((str(tmp_path), "skills_naive"),), 2, 4, True, 1)
+    assert env.defer and env.kinds == 9
+    _, env, _ = _teams_and_env((("skills_naive", "skills_random"),), 2, 4, True, 1)
+    assert not env.defer

@@ -33,6 +33,11 @@ class NetworkTeam:
     """The self features its networks read: the first ones of a game that gives more (a skill
     game with ``env.reach_features`` beside a team trained without); None: all."""
 
+    @property
+    def kinds(self) -> int:
+        """The parametrised head's kinds (0: the Gaussian head), as its network has them."""
+        return self.policy.kinds
+
     def init_carry(self, players_per_team: int) -> PolicyCarry:
         """Zero LSTM memory for the ``players_per_team`` players of one game."""
         return self.policy.initial_carry((players_per_team,))

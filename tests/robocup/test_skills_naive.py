@@ -209,7 +209,7 @@ def test_bad_decisions_are_refused_in_one_line() -> None:
     obs = observe([state(Scene(), 2)])
     with pytest.raises(ValueError, match=r"PASS index 12 \(allowed: 1..11\)"):
         to_player_actions(Decisions.of(np.array([Kind.PASS]), np.array([12])), obs)
-    with pytest.raises(ValueError, match=r"kind 42 \(allowed: 0..12\)"):
+    with pytest.raises(ValueError, match=r"kind 42 \(allowed: 0..14\)"):
         to_player_actions(Decisions.of(np.array([42])), obs)
     with pytest.raises(ValueError, match=r"shapes kind \(2,\)"):
         to_player_actions(Decisions.of(np.array([0, 0])), obs)

@@ -41,7 +41,7 @@ def test_each_row_is_decided_as_in_the_whole_batch_and_routines_skip_open_play()
     # The scenes reach every kind but the rare SHOOT and HOLD (test_skills_naive's scenes)
     # and a set play's KICK: marking and passing or dribbling among them, the parts one
     # player's decision skips.
-    assert kinds == set(Kind) - {Kind.SHOOT, Kind.HOLD, Kind.KICK}
+    assert kinds == set(Kind) - {Kind.SHOOT, Kind.HOLD, Kind.KICK, Kind.PLANNER, Kind.HELIOS_MOVE}
 
 
 def test_deciding_our_set_plays_is_rowwise_and_only_our_set_plays_change() -> None:
@@ -86,3 +86,56 @@ def test_the_trimmed_numpy_path_decides_as_the_plain_one() -> None:
                 assert got.dtype == want.dtype
                 np.testing.assert_array_equal(got, want[i:i + 1])
     assert skipped > 300  # most rows skip the ball's part
+
+
+def test_skills_planner_hands_every_kick_to_helios_planner_and_nothing_else() -> None:
+    """``skills_planner`` is ``skills_naive`` but for its open-play kicks: there the proxy gets
+    helios-base's shot search, then its planner (helios's own evaluator), then a hold, with the
+    proxy's reflexes on as helios's own players have them."""
+    assert is_rowwise(naive.skills_planner)
+    planned = 0
+    for states in _cycles(40):
+        decisions = naive.skills_naive_decisions(observe(states))
+        for state, row, answer, base in zip(
+                states, decisions.kind, naive.skills_planner(states), skills_naive(states),
+                strict=True):
+            if row not in (Kind.SHOOT, Kind.PASS, Kind.DRIBBLE, Kind.HOLD):
+                assert answer == base
+                continue
+            planned += 1
+            assert state.world_model.myself.is_kickable
+            first, second, third = answer.actions[:3]
+            assert first.helios_shoot is not None
+            planner = second.helios_offensive_planner
+            assert planner is not None and not planner.server_side_decision
+            assert planner.lead_pass and planner.short_dribble and planner.cross
+            assert third.body_hold_ball is not None
+            assert not (answer.ignore_preprocess or answer.ignore_doforcekick
+                        or answer.ignore_doIntention or answer.ignore_shootInPreprocess)
+    assert planned > 0
+
+
+def test_helios_parts_replace_exactly_the_open_play_moves_and_kicks() -> None:
+    """``skills_helios_move`` hands every open-play move (INTERCEPT, GO_TO, MARK, TACKLE) to
+    helios-base's basic move and keeps ``skills_naive``'s kicks; ``skills_helios_parts`` hands
+    over both; the goalie, set plays and the kick-off placing stay the routines."""
+    moves = (Kind.INTERCEPT, Kind.GO_TO, Kind.MARK, Kind.TACKLE)
+    kicks = (Kind.SHOOT, Kind.PASS, Kind.DRIBBLE, Kind.HOLD)
+    counted = {"move": 0, "kick": 0, "routine": 0}
+    for states in _cycles(20):
+        kinds = naive.skills_naive_decisions(observe(states)).kind
+        base = skills_naive(states)
+        parts = naive.SkillsPlanner(on_ball=True, off_ball=True)(states)
+        moved = naive.SkillsPlanner(on_ball=False, off_ball=True)(states)
+        for kind, b, p, m in zip(kinds, base, parts, moved, strict=True):
+            if kind in moves:
+                counted["move"] += 1
+                assert p == m and p.actions[0].helios_basic_move is not None
+                assert not p.ignore_doforcekick and not p.ignore_doIntention
+            elif kind in kicks:
+                counted["kick"] += 1
+                assert m == b and p.actions[1].helios_offensive_planner is not None
+            else:
+                counted["routine"] += 1
+                assert b == p == m
+    assert min(counted.values()) > 0

@@ -23,8 +23,10 @@ cycle over Thrift. The modules:
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
-from elevens.robocup.skills.naive import SkillsNaive, skills_naive
+from elevens.robocup.skills.naive import SkillsNaive, SkillsPlanner, skills_naive
+from elevens.robocup.skills.planner import helios_best
 from elevens.robocup.skills.runtime import Decide
 from elevens.robocup.skills.set_plays import check_set_plays
 
@@ -48,13 +50,34 @@ def _simulator_team(name: str) -> Callable[[str], Decide]:
     return build
 
 
+def _helios(**kwargs: Any) -> Callable[[str], Decide]:
+    """A builder of ``SkillsPlanner(**kwargs)``, which plays our set plays by the routine."""
+
+    def build(set_plays: str) -> Decide:
+        if set_plays != "routine":
+            raise ValueError(f"a team of helios-base's parts with set_plays={set_plays!r} "
+                             "(allowed: 'routine')")
+        return SkillsPlanner(**kwargs)
+
+    return build
+
+
 #: The skills teams by name, each a builder of a batched ``decide(states) -> actions`` given
 #: how it plays our set plays (``set_plays.SET_PLAYS``):
 #: ``skills_naive`` decides on librcsc's world model directly; ``skills_random`` (uniform skill
 #: actions) and ``skills_naive_sim`` (the simulator's ``skills_naive``, on the world model
-#: turned into the skill game's observation and back) play as a trained team does.
+#: turned into the skill game's observation and back) play as a trained team does;
+#: ``skills_planner`` is ``skills_naive`` with helios-base's planner taking its kicks, and
+#: ``skills_planner_ours`` the same with the choice among the planner's chains made here
+#: (helios-base's own choice, through ``GetBestPlannerAction``: the path a learned chooser
+#: takes); ``skills_helios_move`` is ``skills_naive`` with helios-base's off-ball play, and
+#: ``skills_helios_parts`` takes both (the goalie and set plays are the proxy's routines in all).
 SKILLS: dict[str, Callable[[str], Decide]] = {
     "skills_naive": lambda set_plays: skills_naive if set_plays == "routine" else SkillsNaive(),
+    "skills_planner": _helios(),
+    "skills_planner_ours": _helios(choose=helios_best),
+    "skills_helios_move": _helios(on_ball=False, off_ball=True),
+    "skills_helios_parts": _helios(on_ball=True, off_ball=True),
     "skills_random": _simulator_team("skills_random"),
     "skills_naive_sim": _simulator_team("skills_naive_sim"),
 }

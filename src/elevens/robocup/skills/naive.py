@@ -36,6 +36,7 @@ import numpy as np
 
 from elevens.robocup.skills.decode import FORMATION, SLIDE, slot_targets
 from elevens.robocup.skills.observe import PLAYERS, Observation, observe
+from elevens.robocup.skills.planner import Choose
 from elevens.robocup.skills.runtime import rowwise
 from elevens.robocup.skills.set_plays import TakerGuard, decided_set_play
 from elevens.robocup.skills.space import (
@@ -50,7 +51,8 @@ from elevens.robocup.skills.space import (
 __all__ = [
     "ATTACK_PUSH", "DEEPEST", "DEFEND_DROP", "FORMATION", "SHOOT_RANGE", "SLIDE",
     "kick_off_points", "naive_choices", "outside_open_play", "routine_rows",
-    "SkillsNaive", "skills_naive", "skills_naive_decisions", "slot_targets",
+    "SkillsNaive", "skills_naive", "SkillsPlanner", "skills_naive_decisions", "skills_planner",
+    "slot_targets",
 ]
 
 SHOOT_RANGE = 25.0
@@ -74,7 +76,9 @@ _PLAY_ON, _BEFORE_KICK_OFF, _AFTER_GOAL = 2, 0, 8
 # The kinds as plain ints: numpy reads an IntEnum member through attribute probes that cost
 # more than the where it goes into.
 (_SHOOT, _PASS, _DRIBBLE, _HOLD, _INTERCEPT, _GO_TO, _MARK, _TACKLE, _KICKOFF_MOVE, _GOALIE,
- _SET_PLAY, _PENALTY, _KICK) = (int(k) for k in Kind)
+ _SET_PLAY, _PENALTY, _KICK, _PLANNER, _HELIOS_MOVE) = (int(k) for k in Kind)
+_ON_BALL = np.array([_SHOOT, _PASS, _DRIBBLE, _HOLD], np.int32)
+_OFF_BALL = np.array([_INTERCEPT, _GO_TO, _MARK, _TACKLE], np.int32)
 
 
 def _norm(v: Any, xp: Any = np, keepdims: bool = False) -> Any:
@@ -309,12 +313,16 @@ def skills_naive_decisions(obs: Observation, set_plays: str = "routine") -> Deci
     return Decisions.of(*naive_choices(obs, np, set_plays))
 
 
-def _naive_answers(states: Sequence[Any], set_plays: str,
-                   guard: TakerGuard | None = None) -> list[Any]:
+def _naive_answers(states: Sequence[Any], set_plays: str, guard: TakerGuard | None = None,
+                   planner: bool = False, chooses_chains: bool = False,
+                   helios_move: bool = False) -> list[Any]:
     """The proxy's States of a cycle to ``skills_naive``'s PlayerActions. When every row plays
     a routine (outside play on and our decided set plays, the goalie, a penalty) open play is
     not decided: none of it reaches the answers (the routine's kind replaces it, the kick-off
-    spot its point)."""
+    spot its point). With ``planner`` helios-base's planner takes every open-play kick
+    (``Kind.PLANNER`` for SHOOT, PASS, DRIBBLE and HOLD), the choice among its chains ours
+    with ``chooses_chains``; with ``helios_move`` helios-base's off-ball play takes every
+    open-play move (``Kind.HELIOS_MOVE`` for INTERCEPT, GO_TO, MARK and TACKLE)."""
     obs = observe(states)
     if routine_rows(obs, set_plays).all():
         n = len(obs)
@@ -325,7 +333,14 @@ def _naive_answers(states: Sequence[Any], set_plays: str,
         decisions = skills_naive_decisions(obs, set_plays)
     if guard is not None:
         decisions, _ = guard.apply(obs, decisions)
-    return to_player_actions(decisions, obs)
+    if planner or helios_move:
+        kind = decisions.kind
+        if planner:
+            kind = np.where(np.isin(kind, _ON_BALL), _PLANNER, kind)
+        if helios_move:
+            kind = np.where(np.isin(kind, _OFF_BALL), _HELIOS_MOVE, kind)
+        decisions = Decisions.of(kind, decisions.index, decisions.point)
+    return to_player_actions(decisions, obs, chooses_chains)
 
 
 @rowwise  # every row is decided on its own world model: nothing to gather
@@ -333,6 +348,34 @@ def skills_naive(states: Sequence[Any]) -> list[Any]:
     """The decision server's callable: the proxy's States of a cycle to its PlayerActions,
     our set plays the proxy's ready behaviour."""
     return _naive_answers(states, "routine")
+
+
+class SkillsPlanner:
+    """``skills_naive`` with helios-base's play in its place on the ball (``on_ball``: its
+    planner) or off it (``off_ball``: its basic move), or both: the decision server's callable
+    (rowwise), yardsticks of what each part of the decision is worth against helios-base. The
+    planner searches chains of passes, dribbles and shots; which one the player plays is
+    helios-base's choice, or with ``choose`` elevens' (the decision server asks
+    ``choose_chain``, ``planner.Choose``)."""
+
+    def __init__(self, choose: Choose | None = None, *, on_ball: bool = True,
+                 off_ball: bool = False) -> None:
+        if choose is not None:
+            if not on_ball:
+                raise ValueError("a chain chooser without the planner on the ball "
+                                 "(allowed: on_ball=True with choose)")
+            self.choose_chain = choose
+        self.chooses = choose is not None
+        self.on_ball, self.off_ball = on_ball, off_ball
+        rowwise(self)
+
+    def __call__(self, states: Sequence[Any]) -> list[Any]:
+        return _naive_answers(states, "routine", planner=self.on_ball,
+                              chooses_chains=self.chooses, helios_move=self.off_ball)
+
+
+#: What the on-ball decision is worth against helios-base.
+skills_planner = SkillsPlanner()
 
 
 class SkillsNaive:

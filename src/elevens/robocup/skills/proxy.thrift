@@ -216,6 +216,31 @@ struct HeliosSetPlay {}
 
 struct HeliosPenalty {}
 
+// helios-base's shot search (Bhv_StrictCheckShoot).
+struct HeliosShoot {}
+
+// helios-base's off-ball play (Bhv_BasicMove): a tackle, a run at the ball when it is the
+// player's to win, else its formation position at helios's stamina-saving dash power.
+struct HeliosBasicMove {}
+
+// helios-base's on-ball planner: its action-chain search over the generators switched on here
+// (evaluation, field 13, left unset: helios's own field evaluator), then the best chain's
+// first action. With server_side_decision the proxy asks GetBestPlannerAction instead.
+struct HeliosOffensivePlanner {
+  1: bool direct_pass,
+  2: bool lead_pass,
+  3: bool through_pass,
+  4: bool short_dribble,
+  5: bool long_dribble,
+  6: bool cross,
+  7: bool simple_pass,
+  8: bool simple_dribble,
+  9: bool simple_shoot,
+  10: bool server_side_decision,
+  11: i32 max_depth,
+  12: i32 max_nodes
+}
+
 // One entry of an answer; exactly one field is set. Body entries are tried in order until
 // one executes; neck and view entries apply on top.
 struct PlayerAction {
@@ -230,6 +255,9 @@ struct PlayerAction {
   44: optional Neck_TurnToBallOrScan neck_turn_to_ball_or_scan,
   54: optional View_Wide view_wide,
   55: optional HeliosGoalie helios_goalie,
+  58: optional HeliosShoot helios_shoot,
+  59: optional HeliosOffensivePlanner helios_offensive_planner,
+  61: optional HeliosBasicMove helios_basic_move,
   62: optional HeliosSetPlay helios_set_play,
   63: optional HeliosPenalty helios_penalty
 }
@@ -255,6 +283,58 @@ struct CoachActions {
   1: list<CoachAction> actions
 }
 
+// ---- the planner's candidates, when elevens chooses among them (server_side_decision) ----
+
+enum RpcActionCategory {
+  AC_Hold = 0,
+  AC_Dribble = 1,
+  AC_Pass = 2,
+  AC_Shoot = 3,
+  AC_Clear = 4,
+  AC_Move = 5,
+  AC_NoAction = 6
+}
+
+// One action of a chain; parent_index -1 for a chain's first action.
+struct RpcCooperativeAction {
+  1: RpcActionCategory category,
+  2: i32 index,
+  3: i32 sender_unum,
+  4: i32 target_unum,
+  5: RpcVector2D target_point,
+  6: double first_ball_speed,
+  10: i32 duration_step,
+  16: i32 parent_index
+}
+
+// The state the planner predicts after the action.
+struct RpcPredictState {
+  1: i32 spend_time,
+  2: i32 ball_holder_unum,
+  3: RpcVector2D ball_position,
+  4: RpcVector2D ball_velocity,
+  5: double our_defense_line_x,
+  6: double our_offense_line_x
+}
+
+// One node of the planner's search: the chain ending in action, helios's evaluation of it.
+struct RpcActionState {
+  1: RpcCooperativeAction action,
+  2: RpcPredictState predict_state,
+  3: double evaluation
+}
+
+// Every node the planner searched, by its index (the state, field 3, is left unread).
+struct BestPlannerActionRequest {
+  1: RegisterResponse register_response,
+  2: map<i32, RpcActionState> pairs
+}
+
+// The chosen node: the proxy plays the first action of the chain that ends there.
+struct BestPlannerActionResponse {
+  1: i32 index
+}
+
 // ---- the calls a proxy makes ----
 
 service Game {
@@ -267,5 +347,7 @@ service Game {
   // Every cycle: one player's decision.
   PlayerActions GetPlayerActions(1: State state),
   CoachActions GetCoachActions(1: State state),
-  Empty SendByeCommand(1: RegisterResponse register_response)
+  Empty SendByeCommand(1: RegisterResponse register_response),
+  // With HeliosOffensivePlanner.server_side_decision: which searched chain to play.
+  BestPlannerActionResponse GetBestPlannerAction(1: BestPlannerActionRequest best_planner_action_request)
 }

@@ -41,6 +41,7 @@ import numpy as np
 from thriftpy2.thrift import TProcessor
 from thriftpy2.transport import TSocket, TTransportException
 
+from elevens.robocup.skills.planner import Candidates, Choose, helios_best
 from elevens.robocup.skills.space import default_actions
 from elevens.robocup.skills.wire import protocol, protocol_factory, transport_factory
 
@@ -84,6 +85,8 @@ class RuntimeStats:
     decide_ms_p50: float
     decide_ms_p99: float
     connected_players: int
+    chosen: int = 0  # planner chains chosen (GetBestPlannerAction)
+    choice_errors: int = 0  # of which helios-base's choice stood in for a failed chooser
 
     def as_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -160,6 +163,9 @@ class _Connection:
         self.asked = True
         return self.server._ask(state)
 
+    def GetBestPlannerAction(self, request: Any) -> Any:  # noqa: N802
+        return protocol().BestPlannerActionResponse(index=self.server._choose(request))
+
     def GetCoachActions(self, _: Any) -> Any:  # noqa: N802
         m = protocol()
         actions = [m.CoachAction(do_helios_substitute=m.DoHeliosSubstitute())]
@@ -177,6 +183,9 @@ class DecisionServer:
     connected players, when fewer are connected; a :func:`rowwise` ``decide`` waits for
     none and has no deadline). ``on_default(state)``: told of every
     request answered by the default instead of ``decide`` (a recorder masks those cycles).
+    A player that leaves its kick to helios-base's planner with the choice on our side
+    (``planner``) asks which searched chain to play: ``decide.choose_chain`` chooses when
+    ``decide`` has one, else :func:`planner.helios_best` (also the answer when it fails).
     Start with :meth:`start`, stop with :meth:`close`, or use it as a context manager."""
 
     def __init__(
@@ -205,6 +214,7 @@ class DecisionServer:
         self.gather_s = gather_s
         self.coach_substitutes = coach_substitutes
         self.on_default = on_default
+        self.choose: Choose = getattr(decide, "choose_chain", helios_best)
         self._listener = socket.create_server((host, port), backlog=32)
         self.host, self.port = self._listener.getsockname()[:2]
         self._lock = threading.Condition()
@@ -222,6 +232,8 @@ class DecisionServer:
         self._batch_sizes = 0
         self._defaults = 0
         self._errors = 0
+        self._chosen = 0
+        self._choice_errors = 0
 
     # ---- lifecycle ----
 
@@ -412,6 +424,24 @@ class DecisionServer:
                 self._errors += 1
             return None
 
+    def _choose(self, request: Any) -> int:
+        """The node of the planner's search the asking player plays: ``choose``'s, or
+        helios-base's own when it fails or names a node that was not searched."""
+        candidates = Candidates.of(request.pairs)
+        unum = int(getattr(request.register_response, "uniform_number", 0) or 0)
+        try:
+            index = int(self.choose(unum, candidates))
+            if index not in set(candidates.index.tolist()):
+                raise ValueError(f"chose node {index}, not among the {len(candidates)} searched")
+        except Exception:
+            _log.exception("choose failed; the player plays helios-base's choice")
+            index = helios_best(unum, candidates)
+            with self._lock:
+                self._choice_errors += 1
+        with self._lock:
+            self._chosen += 1
+        return index
+
     def _defaulted(self, state: Any) -> None:
         if self.on_default is not None:
             try:
@@ -441,4 +471,5 @@ class DecisionServer:
                 roundtrip_ms_max=float(trip.max()) if trip.size else float("nan"),
                 decide_ms_p50=pct(dec, 50), decide_ms_p99=pct(dec, 99),
                 connected_players=self._connected[0],
+                chosen=self._chosen, choice_errors=self._choice_errors,
             )

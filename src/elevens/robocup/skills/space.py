@@ -62,6 +62,10 @@ class Kind(enum.IntEnum):
     SET_PLAY = 10
     PENALTY = 11
     KICK = 12
+    #: helios-base's on-ball planner decides this player's kick (a yardstick, runtime only).
+    PLANNER = 13
+    #: helios-base's off-ball play decides this player's move (a yardstick, runtime only).
+    HELIOS_MOVE = 14
 
 
 #: Kinds of open play: elevens' own choice, every proxy reflex off.
@@ -188,7 +192,7 @@ def _intercept(m: Any) -> Any:
     )
 
 
-def _one(m: Any, obs: Observation, dec: Decisions, i: int) -> list[Any]:
+def _one(m: Any, obs: Observation, dec: Decisions, i: int, ours_chooses: bool) -> list[Any]:
     kind, index, point, pos = Kind(int(dec.kind[i])), int(dec.index[i]), dec.point[i], obs.pos[i]
     if kind == Kind.SHOOT:
         return [_kick(m, point, BALL_SPEED_MAX), _hold(m, obs, i), _neck(m)]
@@ -229,11 +233,23 @@ def _one(m: Any, obs: Observation, dec: Decisions, i: int) -> list[Any]:
     if kind == Kind.KICK:
         speed = float(pass_speed(np.linalg.norm(point - pos)))
         return [_kick(m, point, speed), _hold(m, obs, i), _neck(m)]
+    if kind == Kind.PLANNER:
+        planner = m.HeliosOffensivePlanner(
+            direct_pass=True, lead_pass=True, through_pass=True, short_dribble=True,
+            long_dribble=True, cross=True, simple_pass=False, simple_dribble=False,
+            simple_shoot=True, server_side_decision=ours_chooses, max_depth=0, max_nodes=0,
+        )
+        return [m.PlayerAction(helios_shoot=m.HeliosShoot()),
+                m.PlayerAction(helios_offensive_planner=planner), _hold(m, obs, i), _neck(m)]
+    if kind == Kind.HELIOS_MOVE:  # it turns the neck itself
+        return [m.PlayerAction(helios_basic_move=m.HeliosBasicMove()), _turn_to_ball(m)]
     return [m.PlayerAction(helios_penalty=m.HeliosPenalty())]
 
 
-def to_player_actions(decisions: Decisions, obs: Observation) -> list[Any]:
-    """The proxy's ``PlayerActions`` for each row of ``obs``."""
+def to_player_actions(decisions: Decisions, obs: Observation,
+                      chooses_chains: bool = False) -> list[Any]:
+    """The proxy's ``PlayerActions`` for each row of ``obs``; with ``chooses_chains`` a
+    ``PLANNER`` row asks the decision server which of the planner's chains to play."""
     n = len(obs)
     decisions.check(n)
     m = protocol()
@@ -242,7 +258,7 @@ def to_player_actions(decisions: Decisions, obs: Observation) -> list[Any]:
         kind = int(decisions.kind[i])
         ours = kind in _OURS
         out.append(m.PlayerActions(
-            actions=_one(m, obs, decisions, i),
+            actions=_one(m, obs, decisions, i, chooses_chains),
             ignore_preprocess=kind == Kind.KICKOFF_MOVE,
             ignore_doforcekick=ours,
             ignore_doHeardPassRecieve=ours,

@@ -104,10 +104,12 @@ def test_the_runtime_plays_skills_naives_decision_for_a_deferring_player() -> No
             return carry, acts.at[:5, 0].set(DEFER)
 
     decide = LearnedSkills(HalfDefer(), None, defer=True)
-    _, acts = decide._act(None, decide.carry, obs, np.ones(11, bool), jax.random.key(0))
+    _, (acts, deferring) = decide._act(None, decide.carry, obs, np.ones(11, bool),
+                                      jax.random.key(0))
     naive = np.asarray(jax.jit(SkillsNaiveTeam().play)(obs))
     np.testing.assert_array_equal(np.asarray(acts)[:5], naive[:5])
     assert np.all(np.asarray(acts)[5:, 0] == 5.0)
+    assert np.asarray(deferring).tolist() == [True] * 5 + [False] * 6
 
 
 def test_defer_needs_the_ninth_kind_and_is_refused_in_one_line() -> None:
@@ -136,7 +138,7 @@ def test_server_fine_tuning_records_defer_and_plays_skills_naives_action() -> No
     one = jax.tree.map(lambda leaf: leaf[None], obs)
     variables = jax.jit(policy.init)(jax.random.key(0), carry, one, jnp.zeros((1, 11), bool))
     recorder = Recorder(policy, defer=True)
-    _, action, raw, log_prob = recorder._step(variables, carry, one, np.ones((1, 11), bool),
+    _, action, raw, log_prob, _ = recorder._step(variables, carry, one, np.ones((1, 11), bool),
                                               jax.random.key(1))
     assert np.all(np.asarray(raw)[0, :, 0] == DEFER)
     assert np.all(np.asarray(log_prob) > -60.0)  # finite: the kind's share is ~1
@@ -155,13 +157,52 @@ def test_a_trained_deferring_team_defers_in_the_server_runtime_and_the_tournamen
     from tests.robocup.test_skills_learned import TINY
 
     config = skills_config("2v2", **{**TINY, "run.run_dir": str(tmp_path), "env.defer": True,
-                                     "network.kinds": 9, "network.last_kind_logit": 6.0})
+                                     "network.kinds": 9, "network.last_kind_logit": 6.0,
+                                     "env.defer_to": "helios"})
     state = make_learner(config.learner, config.learner.make_env()).init(jax.random.key(3))
     with Checkpointer(tmp_path / "checkpoints") as checkpointer:
         checkpointer.save(0, state, config.to_dict(), {"iteration": 0})
     decide = skills_policy(str(tmp_path))
-    assert isinstance(decide, LearnedSkills) and decide.defer
+    assert isinstance(decide, LearnedSkills) and decide.defer and decide.defer_to == "helios"
     _, env, _ = _teams_and_env(((str(tmp_path), "skills_naive"),), 2, 4, True, 1)
     assert env.defer and env.kinds == 9
     _, env, _ = _teams_and_env((("skills_naive", "skills_random"),), 2, 4, True, 1)
     assert not env.defer
+
+
+def test_deferring_to_helios_plays_helios_bases_parts_for_the_deferring_players_only() -> None:
+    # env.defer_to="helios": in the server a deferring player's open-play decision goes to
+    # helios-base's planner (with the ball) or basic move (without); the goalie's routine and the
+    # players that did not defer keep theirs; the simulator's config refuses it without defer.
+    from elevens.robocup.skills.observe import observe
+    from elevens.robocup.skills.space import Kind
+    from tests.robocup.fake_proxy import Scene, state
+
+    class FirstFiveDefer:
+        def init_carry(self, n: int) -> Any:
+            return jnp.zeros((n,))
+
+        def act(self, params: Any, carry: Any, obs: Any, key: jax.Array) -> Any:
+            acts = jnp.tile(jnp.array([[5.0, 0.0, 0.1, 0.1]]), (11, 1))  # GO_TO
+            return carry, acts.at[:5, 0].set(DEFER)
+
+    scene = Scene(ball=(-30.0, 20.0), kickable=2, cycle=5)  # shirt 2 has the ball
+    states = [state(scene, unum) for unum in range(1, 12)]
+    kinds = {}
+    for defer_to in ("skills_naive", "helios"):
+        decide = LearnedSkills(FirstFiveDefer(), None, defer=True, defer_to=defer_to)
+        kinds[defer_to] = decide.decisions(observe(states)).kind.tolist()
+        assert decide.deferring.tolist() == [True] * 5 + [False] * 6
+    naive, helios = kinds["skills_naive"], kinds["helios"]
+    assert naive[0] == helios[0] == Kind.GOALIE
+    assert helios[1] == Kind.PLANNER and naive[1] in (Kind.SHOOT, Kind.PASS, Kind.DRIBBLE,
+                                                      Kind.HOLD)
+    assert helios[2:5] == [Kind.HELIOS_MOVE] * 3 and Kind.HELIOS_MOVE not in naive
+    assert helios[5:] == naive[5:] == [Kind.GO_TO] * 6
+    with pytest.raises(ValueError, match=r"defer_to='helios' is invalid \(allowed: "):
+        LearnedSkills(FirstFiveDefer(), None, defer=False, defer_to="helios")
+    with pytest.raises(ValueError, match=r"env.defer_to='helios' is invalid without env.defer"):
+        skills_config("2v2", **{"env.defer_to": "helios"})
+    with pytest.raises(ValueError, match=r"env.defer_to='bob' is invalid \(allowed: "
+                                         r"skills_naive, helios\)"):
+        skills_config("2v2", **{"env.defer": True, "network.kinds": 9, "env.defer_to": "bob"})

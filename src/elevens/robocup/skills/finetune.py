@@ -290,7 +290,9 @@ class SkillGames:
                                     hold_s=server.hold_ms / 1e3, set_plays=server.set_plays,
                                     reach=config.learner.env.self_features
                                     == self_feature_count(True),
-                                    defer=config.learner.env.kinds == DEFER + 1)
+                                    defer=config.learner.env.kinds == DEFER + 1,
+                                    defer_to=getattr(config.learner.env, "defer_to",
+                                                     "skills_naive"))
                 decision = stack.enter_context(DecisionServer(
                     recorder, players=PLAYERS, deadline_s=server.deadline_ms / 1e3,
                     gather_s=server.gather_ms / 1e3, on_default=recorder.defaulted))

@@ -69,7 +69,8 @@ from elevens.train.config import (
 )
 
 __all__ = [
-    "SkillSoccer", "SkillsEnvConfig", "register", "skills_config", "skills_field", "tackle_draws",
+    "DEFER_TO", "SkillSoccer", "SkillsEnvConfig", "register", "skills_config", "skills_field",
+    "tackle_draws",
 ]
 
 
@@ -276,6 +277,10 @@ def tackle_draws(key: jax.Array, m: int) -> jax.Array:
     return jax.lax.bitcast_convert_type(bits, jnp.float32) - 1.0
 
 
+#: Who plays a deferring player in the server (``SkillsEnvConfig.defer_to``).
+DEFER_TO = ("skills_naive", "helios")
+
+
 @dataclasses.dataclass(frozen=True)
 class SkillsEnvConfig(RcssEnvConfig):
     """The skill game (``SkillSoccer``); the fields are ``RcssEnvConfig``'s (give the server's
@@ -292,6 +297,12 @@ class SkillsEnvConfig(RcssEnvConfig):
     simulator and in the server alike). A policy that defers where it has learned nothing
     better starts at ``skills_naive``'s level (``network.kinds 9``, and
     ``network.last_kind_logit`` for how often an untrained one defers)."""
+
+    defer_to: str = "skills_naive"
+    """Who plays a deferring player in the server: ``skills_naive``, or ``helios``: helios-base's
+    own parts through the proxy (its on-ball planner with the ball, its basic move without:
+    ``skills_helios_parts``, which plays helios-base far closer than ``skills_naive``). The
+    simulator cannot play helios-base's parts: there ``skills_naive`` stands in for both."""
 
     PHYSICS: ClassVar[str] = "skills"
     BODIES: ClassVar[type[RcssSoccer]] = SkillSoccer
@@ -317,6 +328,12 @@ class SkillsEnvConfig(RcssEnvConfig):
                 raise ValueError(
                     f"env.{name}={getattr(self, name)!r} is invalid: it must be True or False"
                 )
+        if self.defer_to not in DEFER_TO:
+            raise ValueError(f"env.defer_to={self.defer_to!r} is invalid (allowed: "
+                             f"{', '.join(DEFER_TO)})")
+        if self.defer_to != "skills_naive" and not self.defer:
+            raise ValueError(f"env.defer_to={self.defer_to!r} is invalid without env.defer "
+                             "(set --env.defer, or leave env.defer_to at skills_naive)")
 
 
 def skills_config(preset: str, **overrides: Any) -> TrainConfig:

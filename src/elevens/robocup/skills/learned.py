@@ -36,7 +36,7 @@ from elevens.robocup.skills.decode import (
     SkillContext,
     decode,
 )
-from elevens.robocup.skills.naive import kick_off_points, outside_open_play
+from elevens.robocup.skills.naive import helios_parts, kick_off_points, outside_open_play
 from elevens.robocup.skills.observe import PLAYERS, observe
 from elevens.robocup.skills.observe import Observation as SkillObservation
 from elevens.robocup.skills.set_plays import TakerGuard, check_set_plays
@@ -257,11 +257,14 @@ class LearnedSkills:
     def __init__(self, policy: Any, params: Any, *, name: str = "learned",
                  field: Field = SKILLS_FIELD, episode_length: int = MATCH_CLOCK,
                  seed: int = 0, set_plays: str = "routine", reach: bool = False,
-                 defer: bool = False) -> None:
+                 defer: bool = False, defer_to: str = "skills_naive") -> None:
         check_set_plays(set_plays)
+        check_defer_to(defer, defer_to)
         self.set_plays = set_plays
         self.reach = reach
         self.defer = defer
+        self.defer_to = defer_to
+        self.deferring = np.zeros(0, bool)  # the last decided rows that deferred
         self.guard = TakerGuard()
         self.policy = policy
         self.params = params
@@ -279,16 +282,18 @@ class LearnedSkills:
         self.guard.reset()
 
     def _step(self, params: Any, carry: Any, obs: Observation, present: jax.Array,
-              key: jax.Array) -> tuple[Any, jax.Array]:
+              key: jax.Array) -> tuple[Any, tuple[jax.Array, jax.Array]]:
         new, actions = self.policy.act(params, carry, obs, key)
+        deferring = jnp.zeros(actions.shape[:-1], bool)
         if self.defer:
+            deferring = jnp.round(actions[..., 0]) == DEFER
             actions = deferred(actions, obs, SkillsNaiveTeam(field=self.field))
 
         def keep(fresh: jax.Array, old: jax.Array) -> jax.Array:
             asked = present.reshape(present.shape + (1,) * (fresh.ndim - 1))
             return jnp.where(asked, fresh, old)
 
-        return jax.tree.map(keep, new, carry), actions
+        return jax.tree.map(keep, new, carry), (actions, deferring)
 
     def actions(self, obs: SkillObservation) -> tuple[np.ndarray, np.ndarray]:
         """(actions f32[m, 4], the observations' masks bool[m, 22]) for the rows of ``obs``,
@@ -298,17 +303,22 @@ class LearnedSkills:
         view = sim_observation(obs, self.field, episode_length=self.episode_length,
                                reach=self.reach)
         out = np.zeros((len(obs.unum), SKILL_ACTION_SIZE), np.float32)
+        self.deferring = np.zeros(len(obs.unum), bool)
         for rows, slot, fill, present in shirt_batches(obs.unum):
             padded = jax.tree.map(lambda leaf, fill=fill: leaf[fill], view)
             self.key, key = jax.random.split(self.key)
-            self.carry, acts = self._act(self.params, self.carry, padded, present, key)
+            self.carry, (acts, deferring) = self._act(self.params, self.carry, padded,
+                                                      present, key)
             self.policy_calls += 1
             out[rows] = np.asarray(acts)[slot]
+            self.deferring[rows] = np.asarray(deferring)[slot]
         return out, np.asarray(view.entity_mask)
 
     def decisions(self, obs: SkillObservation) -> Decisions:
         actions, seen = self.actions(obs)
         decisions = skill_decisions(obs, actions, seen, self.field, self.set_plays)
+        if self.defer_to == "helios":
+            decisions = helios_parts(decisions, self.deferring)
         if self.set_plays == "decided":
             decisions, _ = self.guard.apply(obs, decisions)
         return decisions
@@ -328,8 +338,8 @@ class LearnedSkills:
         )
         view = Observation(**leaves)
         _, key = jax.random.split(self.key)
-        carry, actions = self._act(self.params, self.carry, view, np.zeros(PLAYERS, bool), key)
-        jax.block_until_ready(actions)
+        _, out = self._act(self.params, self.carry, view, np.zeros(PLAYERS, bool), key)
+        jax.block_until_ready(out)
 
 
 def _trained_actions(spec: str) -> int | None:
@@ -375,6 +385,26 @@ def trained_defer(spec: str) -> bool:
     return config is not None and config.learner.env.kinds == DEFER + 1
 
 
+def trained_defer_to(spec: str) -> str:
+    """Who plays the trained skills team ``spec``'s deferring players in the server
+    (``env.defer_to``, read from its config)."""
+    from elevens.runs.teams import trained_config
+
+    config = trained_config(spec)
+    return "skills_naive" if config is None else getattr(
+        config.learner.env, "defer_to", "skills_naive")
+
+
+def check_defer_to(defer: bool, defer_to: str) -> None:
+    """ValueError in one line unless ``defer_to`` is one of ``game.DEFER_TO``, and
+    ``skills_naive`` for a team that does not defer."""
+    from elevens.robocup.skills.game import DEFER_TO
+
+    if defer_to not in DEFER_TO or (defer_to != "skills_naive" and not defer):
+        raise ValueError(f"defer_to={defer_to!r} is invalid (allowed: {', '.join(DEFER_TO)}; "
+                         "other than skills_naive only for a deferring team)")
+
+
 def trained_reach(spec: str) -> bool:
     """Whether the trained skills team ``spec`` sees librcsc's intercept table
     (``env.reach_features``, read from its config)."""
@@ -396,7 +426,8 @@ def load_learned_skills(spec: str, *, deterministic: bool = True, warm: bool = T
     team = load_team(spec, deterministic=deterministic)
     team.check_size(PLAYERS, SKILL_ACTION_SIZE)
     decide = LearnedSkills(team.policy, team.params, name=team.name, set_plays=set_plays,
-                           reach=trained_reach(spec), defer=trained_defer(spec))
+                           reach=trained_reach(spec), defer=trained_defer(spec),
+                           defer_to=trained_defer_to(spec))
     if warm:
         decide.warm_up()
     return decide

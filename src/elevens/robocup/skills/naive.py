@@ -51,8 +51,8 @@ from elevens.robocup.skills.space import (
 __all__ = [
     "ATTACK_PUSH", "DEEPEST", "DEFEND_DROP", "FORMATION", "SHOOT_RANGE", "SLIDE",
     "kick_off_points", "naive_choices", "outside_open_play", "routine_rows",
-    "SkillsNaive", "skills_naive", "SkillsPlanner", "skills_naive_decisions", "skills_planner",
-    "slot_targets",
+    "SkillsNaive", "skills_naive", "SkillsPlanner", "helios_parts", "skills_naive_decisions",
+    "skills_planner", "slot_targets",
 ]
 
 SHOOT_RANGE = 25.0
@@ -334,13 +334,23 @@ def _naive_answers(states: Sequence[Any], set_plays: str, guard: TakerGuard | No
     if guard is not None:
         decisions, _ = guard.apply(obs, decisions)
     if planner or helios_move:
-        kind = decisions.kind
-        if planner:
-            kind = np.where(np.isin(kind, _ON_BALL), _PLANNER, kind)
-        if helios_move:
-            kind = np.where(np.isin(kind, _OFF_BALL), _HELIOS_MOVE, kind)
-        decisions = Decisions.of(kind, decisions.index, decisions.point)
+        decisions = helios_parts(decisions, on_ball=planner, off_ball=helios_move)
     return to_player_actions(decisions, obs, chooses_chains)
+
+
+def helios_parts(decisions: Decisions, rows: np.ndarray | None = None, *, on_ball: bool = True,
+                 off_ball: bool = True) -> Decisions:
+    """``decisions`` with helios-base's play in the open-play decisions of ``rows`` (bool [n];
+    None: all): its planner for a kick (SHOOT, PASS, DRIBBLE, HOLD: ``Kind.PLANNER``) with
+    ``on_ball``, its basic move for a move (INTERCEPT, GO_TO, MARK, TACKLE:
+    ``Kind.HELIOS_MOVE``) with ``off_ball``; routines and the rest unchanged."""
+    kind = decisions.kind
+    take = np.ones(len(kind), bool) if rows is None else np.asarray(rows, bool)
+    if on_ball:
+        kind = np.where(take & np.isin(kind, _ON_BALL), _PLANNER, kind)
+    if off_ball:
+        kind = np.where(take & np.isin(kind, _OFF_BALL), _HELIOS_MOVE, kind)
+    return Decisions.of(kind, decisions.index, decisions.point)
 
 
 @rowwise  # every row is decided on its own world model: nothing to gather

@@ -37,13 +37,19 @@ from elevens.env.reward import reward_terms
 from elevens.env.state import GlobalState, Observation
 from elevens.play import PolicyActor
 from elevens.robocup.rules import MATCH_CLOCK
-from elevens.robocup.skills.learned import shirt_batches, sim_observation, skill_decisions
-from elevens.robocup.skills.naive import kick_off_points, routine_rows
+from elevens.robocup.skills.learned import (
+    check_defer_to,
+    shirt_batches,
+    sim_observation,
+    skill_decisions,
+)
+from elevens.robocup.skills.naive import helios_parts, kick_off_points, routine_rows
 from elevens.robocup.skills.observe import PLAYERS, observe
 from elevens.robocup.skills.observe import Observation as SkillObservation
 from elevens.robocup.skills.set_plays import TakerGuard, check_set_plays
 from elevens.robocup.skills.space import to_player_actions
 from elevens.robocup.skills.team import (
+    DEFER,
     SKILLS_FIELD,
     SkillsNaiveTeam,
     deferred,
@@ -127,10 +133,13 @@ class Recorder:
 
     def __init__(self, policy: Any, *, seed: int = 0, field: Field = SKILLS_FIELD,
                  episode_length: int = MATCH_CLOCK, hold_s: float = 0.0,
-                 set_plays: str = "routine", reach: bool = False, defer: bool = False) -> None:
+                 set_plays: str = "routine", reach: bool = False, defer: bool = False,
+                 defer_to: str = "skills_naive") -> None:
         check_set_plays(set_plays)
+        check_defer_to(defer, defer_to)
         self.reach = reach
         self.defer = defer
+        self.defer_to = defer_to
         self.set_plays = set_plays
         self.guard = TakerGuard()
         self.policy = policy
@@ -200,14 +209,16 @@ class Recorder:
     # ---- deciding (the decision server's thread) ----
 
     def _policy_step(self, params: Any, carry: Any, obs: Observation, present: jax.Array,
-                     key: jax.Array) -> tuple[Any, jax.Array, jax.Array, jax.Array]:
+                     key: jax.Array) -> tuple[Any, jax.Array, jax.Array, jax.Array, jax.Array]:
         reset = jnp.zeros((1, PLAYERS), bool)  # new_match zeroes the memory itself
         new, output = self.policy.apply(params, carry, obs, reset)
         distribution = output.distribution()
         sample = distribution.sample(key)
         log_prob = distribution.log_prob(sample.pre_tanh)
         action = sample.action
-        if self.defer:  # played as skills_naive's, recorded (pre_tanh) as DEFER
+        deferring = jnp.zeros(action.shape[:-1], bool)
+        if self.defer:  # played as skills_naive's (or helios's), recorded (pre_tanh) as DEFER
+            deferring = jnp.round(action[..., 0]) == DEFER
             one = jax.tree.map(lambda leaf: leaf[0], obs)
             action = deferred(action[0], one, SkillsNaiveTeam(field=self.field))[None]
 
@@ -215,7 +226,7 @@ class Recorder:
             asked = present.reshape(present.shape + (1,) * (fresh.ndim - 2))
             return jnp.where(asked, fresh, old)
 
-        return jax.tree.map(keep, new, carry), action, sample.pre_tanh, log_prob
+        return jax.tree.map(keep, new, carry), action, sample.pre_tanh, log_prob, deferring
 
     def warm_up(self) -> None:
         """Compile the policy call before a match (nobody's memory changes)."""
@@ -245,6 +256,7 @@ class Recorder:
         actions = np.zeros((m, 4), np.float32)
         pre_tanh = np.zeros((m, 4), np.float32)
         log_prob = np.zeros(m, np.float32)
+        deferring = np.zeros(m, bool)
         before: list[Any] = [None] * m
         for rows, slot, fill, asked in shirt_batches(obs.unum):
             padded = jax.tree.map(lambda leaf, fill=fill: leaf[fill][None], view)
@@ -253,13 +265,17 @@ class Recorder:
             for r, s in zip(rows, slot, strict=True):
                 before[r] = jax.tree.map(lambda leaf, s=s: leaf[0, s], carry)
             self.key, key = jax.random.split(self.key)
-            self.carry, act, raw, logp = self._step(params, self.carry, padded, present, key)
+            self.carry, act, raw, logp, defers = self._step(params, self.carry, padded,
+                                                            present, key)
             self.policy_calls += 1
             actions[rows] = np.asarray(act)[0, slot]
             pre_tanh[rows] = np.asarray(raw)[0, slot]
             log_prob[rows] = np.asarray(logp)[0, slot]
+            deferring[rows] = np.asarray(defers)[0, slot]
         decisions = skill_decisions(obs, actions, np.asarray(view.entity_mask), self.field,
                                     self.set_plays)
+        if self.defer_to == "helios":
+            decisions = helios_parts(decisions, deferring)
         changed = np.zeros(m, bool)
         if self.set_plays == "decided":
             decisions, changed = self.guard.apply(obs, decisions)

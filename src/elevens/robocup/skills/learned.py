@@ -61,7 +61,7 @@ __all__ = [
     "load_learned_skills",
     "sim_observation",
     "skill_decisions",
-    "trained_reach",
+    "trained_game",
 ]
 
 BALL_SEEN_WITHIN = 10
@@ -376,23 +376,18 @@ def is_skills_team(spec: str) -> bool:
         return False
 
 
-def trained_defer(spec: str) -> bool:
-    """Whether the trained skills team ``spec`` may defer to ``skills_naive`` (``env.defer``,
-    read from its config)."""
+def trained_game(spec: str) -> tuple[bool, bool, str]:
+    """What the trained skills team ``spec``'s config says its game is: whether it sees
+    librcsc's intercept table (``env.reach_features``), whether it may defer (``env.defer``)
+    and to whom in the server (``env.defer_to``); read once."""
     from elevens.runs.teams import trained_config
 
     config = trained_config(spec)
-    return config is not None and config.learner.env.kinds == DEFER + 1
-
-
-def trained_defer_to(spec: str) -> str:
-    """Who plays the trained skills team ``spec``'s deferring players in the server
-    (``env.defer_to``, read from its config)."""
-    from elevens.runs.teams import trained_config
-
-    config = trained_config(spec)
-    return "skills_naive" if config is None else getattr(
-        config.learner.env, "defer_to", "skills_naive")
+    if config is None:
+        return False, False, "skills_naive"
+    env = config.learner.env
+    return (env.self_features == self_feature_count(True), env.kinds == DEFER + 1,
+            getattr(env, "defer_to", "skills_naive"))
 
 
 def check_defer_to(defer: bool, defer_to: str) -> None:
@@ -403,15 +398,6 @@ def check_defer_to(defer: bool, defer_to: str) -> None:
     if defer_to not in DEFER_TO or (defer_to != "skills_naive" and not defer):
         raise ValueError(f"defer_to={defer_to!r} is invalid (allowed: {', '.join(DEFER_TO)}; "
                          "other than skills_naive only for a deferring team)")
-
-
-def trained_reach(spec: str) -> bool:
-    """Whether the trained skills team ``spec`` sees librcsc's intercept table
-    (``env.reach_features``, read from its config)."""
-    from elevens.runs.teams import trained_config
-
-    config = trained_config(spec)
-    return config is not None and config.learner.env.self_features == self_feature_count(True)
 
 
 def load_learned_skills(spec: str, *, deterministic: bool = True, warm: bool = True,
@@ -425,9 +411,9 @@ def load_learned_skills(spec: str, *, deterministic: bool = True, warm: bool = T
     check_skills_team(spec)
     team = load_team(spec, deterministic=deterministic)
     team.check_size(PLAYERS, SKILL_ACTION_SIZE)
+    reach, defer, defer_to = trained_game(spec)
     decide = LearnedSkills(team.policy, team.params, name=team.name, set_plays=set_plays,
-                           reach=trained_reach(spec), defer=trained_defer(spec),
-                           defer_to=trained_defer_to(spec))
+                           reach=reach, defer=defer, defer_to=defer_to)
     if warm:
         decide.warm_up()
     return decide

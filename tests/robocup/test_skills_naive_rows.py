@@ -139,3 +139,18 @@ def test_helios_parts_replace_exactly_the_open_play_moves_and_kicks() -> None:
                 counted["routine"] += 1
                 assert b == p == m
     assert min(counted.values()) > 0
+
+
+def test_helios_parts_follow_librcscs_kickable_not_the_decided_kind() -> None:
+    # A deferring learned player's kind comes from the simulator's skills_naive, which may
+    # disagree with librcsc on who has the ball: helios-base's part goes by librcsc, as its
+    # own players choose; routines and rows not taken stay.
+    kinds = [Kind.GO_TO, Kind.PASS, Kind.DRIBBLE, Kind.INTERCEPT, Kind.GOALIE, Kind.GO_TO]
+    kickable = np.array([True, False, True, False, True, False])
+    rows = np.array([True, True, True, True, True, False])
+    out = naive.helios_parts(naive.Decisions.of(np.array(kinds)), kickable, rows).kind
+    assert out.tolist() == [Kind.PLANNER, Kind.HELIOS_MOVE, Kind.PLANNER, Kind.HELIOS_MOVE,
+                            Kind.GOALIE, Kind.GO_TO]
+    only_ball = naive.helios_parts(naive.Decisions.of(np.array(kinds)), kickable, off_ball=False)
+    assert only_ball.kind.tolist() == [Kind.PLANNER, Kind.PASS, Kind.PLANNER, Kind.INTERCEPT,
+                                       Kind.GOALIE, Kind.GO_TO]

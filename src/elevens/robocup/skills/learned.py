@@ -318,7 +318,7 @@ class LearnedSkills:
         actions, seen = self.actions(obs)
         decisions = skill_decisions(obs, actions, seen, self.field, self.set_plays)
         if self.defer_to == "helios":
-            decisions = helios_parts(decisions, self.deferring)
+            decisions = helios_parts(decisions, obs.kickable, self.deferring)
         if self.set_plays == "decided":
             decisions, _ = self.guard.apply(obs, decisions)
         return decisions

@@ -79,6 +79,7 @@ _PLAY_ON, _BEFORE_KICK_OFF, _AFTER_GOAL = 2, 0, 8
  _SET_PLAY, _PENALTY, _KICK, _PLANNER, _HELIOS_MOVE) = (int(k) for k in Kind)
 _ON_BALL = np.array([_SHOOT, _PASS, _DRIBBLE, _HOLD], np.int32)
 _OFF_BALL = np.array([_INTERCEPT, _GO_TO, _MARK, _TACKLE], np.int32)
+_OPEN_PLAY = np.concatenate([_ON_BALL, _OFF_BALL])
 
 
 def _norm(v: Any, xp: Any = np, keepdims: bool = False) -> Any:
@@ -334,22 +335,26 @@ def _naive_answers(states: Sequence[Any], set_plays: str, guard: TakerGuard | No
     if guard is not None:
         decisions, _ = guard.apply(obs, decisions)
     if planner or helios_move:
-        decisions = helios_parts(decisions, on_ball=planner, off_ball=helios_move)
+        decisions = helios_parts(decisions, obs.kickable, on_ball=planner, off_ball=helios_move)
     return to_player_actions(decisions, obs, chooses_chains)
 
 
-def helios_parts(decisions: Decisions, rows: np.ndarray | None = None, *, on_ball: bool = True,
-                 off_ball: bool = True) -> Decisions:
+def helios_parts(decisions: Decisions, kickable: np.ndarray, rows: np.ndarray | None = None, *,
+                 on_ball: bool = True, off_ball: bool = True) -> Decisions:
     """``decisions`` with helios-base's play in the open-play decisions of ``rows`` (bool [n];
-    None: all): its planner for a kick (SHOOT, PASS, DRIBBLE, HOLD: ``Kind.PLANNER``) with
-    ``on_ball``, its basic move for a move (INTERCEPT, GO_TO, MARK, TACKLE:
-    ``Kind.HELIOS_MOVE``) with ``off_ball``; routines and the rest unchanged."""
+    None: all), by librcsc's ``kickable`` (bool [n]) as helios-base's own players choose:
+    its planner for a player with the ball (``Kind.PLANNER``) with ``on_ball``, its basic move
+    for one without (``Kind.HELIOS_MOVE``) with ``off_ball``. Open play: the kicks and moves
+    (SHOOT, PASS, DRIBBLE, HOLD, INTERCEPT, GO_TO, MARK, TACKLE); routines stay."""
     kind = decisions.kind
-    take = np.ones(len(kind), bool) if rows is None else np.asarray(rows, bool)
+    take = np.isin(kind, _OPEN_PLAY)
+    if rows is not None:
+        take &= np.asarray(rows, bool)
+    kickable = np.asarray(kickable, bool)
     if on_ball:
-        kind = np.where(take & np.isin(kind, _ON_BALL), _PLANNER, kind)
+        kind = np.where(take & kickable, _PLANNER, kind)
     if off_ball:
-        kind = np.where(take & np.isin(kind, _OFF_BALL), _HELIOS_MOVE, kind)
+        kind = np.where(take & ~kickable, _HELIOS_MOVE, kind)
     return Decisions.of(kind, decisions.index, decisions.point)
 
 

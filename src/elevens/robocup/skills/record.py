@@ -275,7 +275,7 @@ class Recorder:
         decisions = skill_decisions(obs, actions, np.asarray(view.entity_mask), self.field,
                                     self.set_plays)
         if self.defer_to == "helios":
-            decisions = helios_parts(decisions, deferring)
+            decisions = helios_parts(decisions, obs.kickable, deferring)
         changed = np.zeros(m, bool)
         if self.set_plays == "decided":
             decisions, changed = self.guard.apply(obs, decisions)

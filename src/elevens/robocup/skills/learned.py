@@ -46,6 +46,7 @@ from elevens.robocup.skills.team import (
     SKILLS_FIELD,
     SkillsNaiveTeam,
     deferred,
+    defers,
     reach_features,
     self_feature_count,
 )
@@ -286,7 +287,7 @@ class LearnedSkills:
         new, actions = self.policy.act(params, carry, obs, key)
         deferring = jnp.zeros(actions.shape[:-1], bool)
         if self.defer:
-            deferring = jnp.round(actions[..., 0]) == DEFER
+            deferring = defers(actions)
             actions = deferred(actions, obs, SkillsNaiveTeam(field=self.field))
 
         def keep(fresh: jax.Array, old: jax.Array) -> jax.Array:

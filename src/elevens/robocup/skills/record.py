@@ -49,10 +49,10 @@ from elevens.robocup.skills.observe import Observation as SkillObservation
 from elevens.robocup.skills.set_plays import TakerGuard, check_set_plays
 from elevens.robocup.skills.space import to_player_actions
 from elevens.robocup.skills.team import (
-    DEFER,
     SKILLS_FIELD,
     SkillsNaiveTeam,
     deferred,
+    defers,
     self_feature_count,
 )
 from elevens.teams.scripted import Field
@@ -218,7 +218,7 @@ class Recorder:
         action = sample.action
         deferring = jnp.zeros(action.shape[:-1], bool)
         if self.defer:  # played as skills_naive's (or helios's), recorded (pre_tanh) as DEFER
-            deferring = jnp.round(action[..., 0]) == DEFER
+            deferring = defers(action)
             one = jax.tree.map(lambda leaf: leaf[0], obs)
             action = deferred(action[0], one, SkillsNaiveTeam(field=self.field))[None]
 

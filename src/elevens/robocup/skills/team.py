@@ -39,7 +39,7 @@ from elevens.teams.scripted import Field
 
 __all__ = [
     "DEFER", "REACH_FEATURES", "SkillsNaiveTeam", "SkillsRandomTeam", "ball_kind_mask",
-    "deferred", "first_kind_mask",
+    "deferred", "defers", "first_kind_mask",
     "nearest_kind_mask", "random_actions", "reach_features", "self_feature_count",
     "skill_observation",
 ]
@@ -334,10 +334,14 @@ def random_actions(key: jax.Array, shape: tuple[int, ...]) -> jax.Array:
     return jnp.concatenate([kind[..., None], pointer[..., None], 2.0 * u[..., 2:] - 1.0], axis=-1)
 
 
+def defers(actions: jax.Array) -> jax.Array:
+    """bool [...]: which rows of actions f32[..., 4] chose ``DEFER``."""
+    return jnp.round(actions[..., 0]) == DEFER
+
+
 def deferred(actions: jax.Array, obs: Observation, naive: SkillsNaiveTeam) -> jax.Array:
     """One team's actions f32[n, 4] with every ``DEFER`` row replaced by what ``naive`` (a
     ``SkillsNaiveTeam`` on the game's field) decides on the team's observation ``obs`` [n]
     (its rows in shirt-number order, as the game and the server runtime's padded view hold
     them)."""
-    defer = jnp.round(actions[..., 0]) == DEFER
-    return jnp.where(defer[..., None], naive.play(obs).astype(actions.dtype), actions)
+    return jnp.where(defers(actions)[..., None], naive.play(obs).astype(actions.dtype), actions)

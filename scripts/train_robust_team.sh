@@ -12,7 +12,8 @@
 # (--env.randomize.enabled) and ended near 0.66 against naive; RANDOMIZE=1 randomises stage 2 as it did.
 # MIX="team=share ..." replaces the fixed opponents' shares (try 3: counter=0.10 and
 # elevens-11v11=0.25, the other panel teams 0.05 each). SEED=N sets --run.seed (default 0; try 5
-# is try 2 with SEED=1, to see how far two seeds of one recipe differ).
+# is try 2 with SEED=1, to see how far two seeds of one recipe differ). MIX_GAMES=11v11 plays the
+# fixed opponents in the 11 v 11 iterations only, the 2 v 2 ones all self-play (try 6).
 # The stage resumes with --resume, so re-running the script after an interruption goes on where
 # it stopped. One core (taskset -c CORE), niced, like the shipped team's recipe.
 #
@@ -30,6 +31,8 @@ read -r -a mix <<< "--opponent.mix $(echo $shares)"
 run() { nice -n 10 taskset -c "$core" "$elevens" train "$@"; }
 
 randomize=()
+mix_games=()
+[ -n "${MIX_GAMES:-}" ] && mix_games=(--opponent.mix-games $MIX_GAMES)
 [ "${RANDOMIZE:-0}" = 1 ] && randomize=(--env.randomize.enabled)
 
 # Stage 2: 11 v 11 mixed with 2 v 2, 331 iterations from elevens-2v2 (the shipped team's stage 2).
@@ -40,7 +43,7 @@ run 11v11 $(resume_flag "$runs/stage2") --no-progress \
   --ppo.minibatch-size 44 --ppo.learning-rate 3e-4 --ppo.gamma 0.99 \
   --ppo.advantage-estimator gae --ppo.normalize-advantages --ppo.entropy-weight 1e-3 \
   --opponent.polyak-tau 0.05 --env.no-shaping-schedule --env.approach-shaping-weight 0 \
-  "${randomize[@]}" "${mix[@]}" \
+  "${randomize[@]}" "${mix[@]}" "${mix_games[@]}" \
   --run.seed "${SEED:-0}" \
   --run.eval-every 20 --run.eval-games 50 --run.eval-teams naive teamwork counter
 

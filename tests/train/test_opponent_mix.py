@@ -118,3 +118,20 @@ def test_evaluation_tracks_a_trained_team_and_refuses_an_unknown_one(tmp_path: P
     with pytest.raises(ValueError, match="run.eval_teams team 'runs/none': team spec"):
         train(tiny_config(tmp_path / "run", **{"run.eval_teams": ("naive", "runs/none")}))
     assert not (tmp_path / "run").exists()
+
+
+def test_mix_games_keeps_the_other_sizes_for_self_play() -> None:
+    # A 1 v 1 run mixed with 2 v 2 whose fixed team plays in the 2 v 2 iterations only.
+    from elevens.train.config import scenario_config
+
+    mixed = {"env.mix": ("2v2",), "env.mix_shares": (0.5,), "opponent.mix": ("naive=0.25",)}
+    learner = tiny_config(**mixed, **{"opponent.mix_games": ("2v2",)}).learner
+    assert opponent_mix(scenario_config(learner, "1v1")) == [("self", 64)]
+    assert opponent_mix(scenario_config(learner, "2v2")) == [("self", 24), ("naive", 8)]
+    everywhere = tiny_config(**mixed).learner
+    assert opponent_mix(scenario_config(everywhere, "1v1")) == [("self", 48), ("naive", 16)]
+    with pytest.raises(ValueError, match=r"entry '3v3' is invalid \(allowed: the run's games "
+                                         r"1v1, 2v2\)"):
+        tiny_config(**mixed, **{"opponent.mix_games": ("3v3",)})
+    with pytest.raises(ValueError, match="is invalid without opponent.mix"):
+        tiny_config(**{"opponent.mix_games": ("1v1",)})

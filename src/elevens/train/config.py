@@ -282,6 +282,10 @@ class OpponentConfig:
     fixed teams alone). E.g. ``('self=0.8', 'naive=0.1', 'runs/x=0.1')``. The fixed teams'
     games train the learner like the others; the opponent's own updates (the Polyak freeze,
     the league's win rates) read the self-play games only."""
+    mix_games: tuple[str, ...] = ()
+    """The game sizes (``NvN``: the main game or games of ``env.mix``) whose iterations play
+    the fixed teams of ``mix``; the others are all self-play. Empty: every size. E.g.
+    ``('11v11',)`` in a run mixed with 2 v 2 keeps the 2 v 2 iterations for self-play."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -1029,8 +1033,12 @@ def scenario_config(learner: LearnerConfig, scenario: str) -> LearnerConfig:
     and minibatch in player sequences, batch / n games, no mix."""
     n = _players_of(scenario)
     env = learner.env
+    opponent = learner.opponent
+    if opponent.mix_games and scenario not in opponent.mix_games:
+        opponent = dataclasses.replace(opponent, mix=(), mix_games=())
     return dataclasses.replace(
         learner,
+        opponent=opponent,
         env=dataclasses.replace(
             env, game=dataclasses.replace(env.game, players_per_team=n), mix=(), mix_shares=()
         ),
@@ -1188,6 +1196,22 @@ def _validate_opponent(opponent: OpponentConfig) -> None:
 
 def _validate_opponent_mix(learner: LearnerConfig) -> None:
     mix = learner.opponent.mix
+    mix_games = learner.opponent.mix_games
+    _require(
+        isinstance(mix_games, tuple), f"opponent.mix_games={mix_games!r} must be a tuple"
+    )
+    sizes = (learner.env.scenario, *learner.env.mix)
+    for game in mix_games:
+        _require(
+            game in sizes,
+            f"opponent.mix_games entry {game!r} is invalid (allowed: the run's games "
+            f"{', '.join(sizes)})",
+        )
+    _require(
+        bool(mix) or not mix_games,
+        f"opponent.mix_games={mix_games!r} is invalid without opponent.mix: it says which "
+        "games play the fixed teams",
+    )
     if not mix:
         return
     form = (

@@ -183,6 +183,7 @@ _SILENT_DEFAULTS = (
     "learner.env.game.observation_noise", "learner.env.randomize",
     "learner.ppo.teacher", "learner.ppo.teacher_weight", "learner.ppo.teacher_iterations",
     "learner.ppo.teacher_balance", "learner.ppo.teacher_group_balance",
+    "learner.opponent.mix_games",
 )
 
 

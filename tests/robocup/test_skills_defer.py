@@ -199,6 +199,11 @@ def test_deferring_to_helios_plays_helios_bases_parts_for_the_deferring_players_
                                                       Kind.HOLD)
     assert helios[2:5] == [Kind.HELIOS_MOVE] * 3 and Kind.HELIOS_MOVE not in naive
     assert helios[5:] == naive[5:] == [Kind.GO_TO] * 6
+    # The match's report counts what was decided: 10 open-play rows (not the goalie), 4 of
+    # them deferred (shirts 2 to 5), and each final kind.
+    assert decide.report() == {"rows": 11, "open_play": 10, "deferred": 4,
+                               "kinds": {"GO_TO": 6, "GOALIE": 1, "PLANNER": 1,
+                                         "HELIOS_MOVE": 3}}
     with pytest.raises(ValueError, match=r"defer_to='helios' is invalid \(allowed: "):
         LearnedSkills(FirstFiveDefer(), None, defer=False, defer_to="helios")
     with pytest.raises(ValueError, match=r"env.defer_to='helios' is invalid without env.defer"):

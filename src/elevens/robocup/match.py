@@ -399,6 +399,10 @@ def _decision_times(result: MatchResult) -> str:
                 f"; {name} decisions: round trip p50 {stats['roundtrip_ms_p50']:.1f} ms, "
                 f"p99 {stats['roundtrip_ms_p99']:.1f} ms, {stats['defaults']} defaults"
             )
+        decided = (report or {}).get("decisions")
+        if isinstance(decided, dict) and decided.get("open_play"):
+            text += (f", {decided['open_play']} open-play rows, "
+                     f"{decided['open_play'] - decided['deferred']} not deferred")
     return text
 
 

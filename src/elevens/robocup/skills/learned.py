@@ -40,7 +40,7 @@ from elevens.robocup.skills.naive import helios_parts, kick_off_points, outside_
 from elevens.robocup.skills.observe import PLAYERS, observe
 from elevens.robocup.skills.observe import Observation as SkillObservation
 from elevens.robocup.skills.set_plays import TakerGuard, check_set_plays
-from elevens.robocup.skills.space import Decisions, to_player_actions
+from elevens.robocup.skills.space import OPEN_PLAY, Decisions, Kind, to_player_actions
 from elevens.robocup.skills.team import (
     DEFER,
     SKILLS_FIELD,
@@ -266,6 +266,10 @@ class LearnedSkills:
         self.defer = defer
         self.defer_to = defer_to
         self.deferring = np.zeros(0, bool)  # the last decided rows that deferred
+        # What the team decided over its match (``report``): rows, rows in open play, those
+        # of them the policy deferred, and each final kind's rows.
+        self.rows = self.open_play = self.deferred = 0
+        self.kinds = np.zeros(len(Kind), np.int64)
         self.guard = TakerGuard()
         self.policy = policy
         self.params = params
@@ -318,11 +322,23 @@ class LearnedSkills:
     def decisions(self, obs: SkillObservation) -> Decisions:
         actions, seen = self.actions(obs)
         decisions = skill_decisions(obs, actions, seen, self.field, self.set_plays)
+        open_play = np.isin(decisions.kind, list(OPEN_PLAY))
         if self.defer_to == "helios":
             decisions = helios_parts(decisions, obs.kickable, self.deferring)
         if self.set_plays == "decided":
             decisions, _ = self.guard.apply(obs, decisions)
+        self.rows += len(open_play)
+        self.open_play += int(open_play.sum())
+        self.deferred += int((open_play & self.deferring).sum())
+        self.kinds += np.bincount(np.asarray(decisions.kind, np.int64), minlength=len(Kind))
         return decisions
+
+    def report(self) -> dict[str, Any]:
+        """What the team decided so far: rows, open-play rows, the open-play rows the policy
+        deferred (with ``env.defer``), and the rows of each final kind by name."""
+        return {"rows": self.rows, "open_play": self.open_play, "deferred": self.deferred,
+                "kinds": {kind.name: int(self.kinds[kind]) for kind in Kind
+                          if self.kinds[kind]}}
 
     def __call__(self, states: Sequence[Any]) -> list[Any]:
         """The decision server's callable: the proxy's States of a cycle to PlayerActions."""

@@ -74,6 +74,7 @@ class SkillsTeamResult:
     ended: str  # "players left" (the game ended) or "interrupted" (Ctrl-C, SIGTERM)
     wall_s: float
     stats: dict[str, Any]  # the decision server's RuntimeStats
+    decisions: dict[str, Any] = dataclasses.field(default_factory=dict)  # a trained team's report
 
     def as_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -129,5 +130,6 @@ def play_skills_team(
         finally:
             stop_team(proc)
         stats = server.stats().as_dict()
+    report = getattr(decide, "report", None)
     return SkillsTeamResult(team=team, ended=ended, wall_s=time.monotonic() - start,
-                            stats=stats)
+                            stats=stats, decisions=report() if callable(report) else {})

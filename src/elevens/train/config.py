@@ -1193,14 +1193,15 @@ def _validate_opponent(opponent: OpponentConfig) -> None:
     _require(
         isinstance(opponent.mix, tuple), f"opponent.mix={opponent.mix!r} must be a tuple"
     )
+    _require(
+        isinstance(opponent.mix_games, tuple),
+        f"opponent.mix_games={opponent.mix_games!r} must be a tuple",
+    )
 
 
 def _validate_opponent_mix(learner: LearnerConfig) -> None:
     mix = learner.opponent.mix
     mix_games = learner.opponent.mix_games
-    _require(
-        isinstance(mix_games, tuple), f"opponent.mix_games={mix_games!r} must be a tuple"
-    )
     sizes = (learner.env.scenario, *learner.env.mix)
     for game in mix_games:
         _require(

@@ -266,9 +266,9 @@ class LearnedSkills:
         self.defer = defer
         self.defer_to = defer_to
         self.deferring = np.zeros(0, bool)  # the last decided rows that deferred
-        # What the team decided over its match (``report``): rows, rows in open play, those
-        # of them the policy deferred, and each final kind's rows.
-        self.rows = self.open_play = self.deferred = 0
+        # What the team decided over its match (``report``): rows in open play, those of
+        # them the policy deferred, and each final kind's rows (their sum: all rows).
+        self.open_play = self.deferred = 0
         self.kinds = np.zeros(len(Kind), np.int64)
         self.guard = TakerGuard()
         self.policy = policy
@@ -327,7 +327,6 @@ class LearnedSkills:
             decisions = helios_parts(decisions, obs.kickable, self.deferring)
         if self.set_plays == "decided":
             decisions, _ = self.guard.apply(obs, decisions)
-        self.rows += len(open_play)
         self.open_play += int(open_play.sum())
         self.deferred += int((open_play & self.deferring).sum())
         self.kinds += np.bincount(np.asarray(decisions.kind, np.int64), minlength=len(Kind))
@@ -336,9 +335,9 @@ class LearnedSkills:
     def report(self) -> dict[str, Any]:
         """What the team decided so far: rows, open-play rows, the open-play rows the policy
         deferred (with ``env.defer``), and the rows of each final kind by name."""
-        return {"rows": self.rows, "open_play": self.open_play, "deferred": self.deferred,
-                "kinds": {kind.name: int(self.kinds[kind]) for kind in Kind
-                          if self.kinds[kind]}}
+        kinds = {kind.name: int(self.kinds[kind]) for kind in Kind if self.kinds[kind]}
+        return {"rows": int(self.kinds.sum()), "open_play": self.open_play,
+                "deferred": self.deferred, "kinds": kinds}
 
     def __call__(self, states: Sequence[Any]) -> list[Any]:
         """The decision server's callable: the proxy's States of a cycle to PlayerActions."""

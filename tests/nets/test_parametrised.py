@@ -317,6 +317,7 @@ def nearest_opponent(obs: Observation, n: int) -> jax.Array:
     return (jnp.argmin(distance, axis=-1) + n - 1).astype(jnp.float32)
 
 
+@pytest.mark.slow
 def test_ppo_learns_the_right_kind_and_the_nearest_opponent() -> None:
     obs, n = real_observations("3v3", 32, seed=5)
     # Only players who see at least two opponents: the pointer then has a real choice.

@@ -44,6 +44,7 @@ TINY = {
 }
 
 
+@pytest.mark.slow
 def test_skills_naive_teaches_in_the_skill_game() -> None:
     config = skills_config("2v2", **TINY)
     env = config.learner.make_env()

@@ -46,6 +46,7 @@ def finish(process: subprocess.Popen[str], timeout: float = WAIT_S) -> str:
     return output
 
 
+@pytest.mark.slow
 def test_an_update_on_two_devices_equals_the_update_on_one(tmp_path: Path) -> None:
     out = tmp_path / "devices.npz"
     finish(run_worker("devices", str(out)))

@@ -62,6 +62,7 @@ def test_bad_ranges_are_refused_before_compiling(override, message) -> None:  # 
         validate(make_config("quickstart", **{"env.randomize.enabled": True, **override}))
 
 
+@pytest.mark.slow
 def test_a_randomised_run_trains_logs_and_resumes_its_config(tmp_path: Path) -> None:
     config = tiny_config(
         tmp_path / "run", **SMALL_FIELD,

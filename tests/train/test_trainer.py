@@ -538,16 +538,15 @@ def test_a_run_starts_from_another_team_sizes_networks(tmp_path: Path) -> None:
         train(tiny_config(tmp_path / "naive", **{"run.init_from": "naive"}), progress=False)
 
 
-def test_a_mixed_run_trains_one_state_at_two_sizes_and_resumes_bit_for_bit(
-    tmp_path: Path,
-) -> None:
-    # 1 v 1 (this file's computation, 64 games) and 2 v 2 (32 games: the same 64 sequences),
-    # every other chunk of K = 2; each size plays a quarter of its games against naive.
-    mixed = {"env.mix": ("2v2",), "env.mix_shares": (0.5,), "run.eval_every": 0,
-             "opponent.mix": ("naive=0.25",)}
-    # 4 iterations: the state passes from one size to the other, and the resumed run starts
-    # on the second size's chunk (the schedule's position comes back with the checkpoint).
-    straight = train(tiny_config(tmp_path / "a", **mixed, **{"run.iterations": 4}),
+# 1 v 1 (this file's computation, 64 games) and 2 v 2 (32 games: the same 64 sequences),
+# every other chunk of K = 2; each size plays a quarter of its games against naive.
+MIXED = {"env.mix": ("2v2",), "env.mix_shares": (0.5,), "run.eval_every": 0,
+         "opponent.mix": ("naive=0.25",)}
+
+
+def test_a_mixed_run_trains_one_state_at_two_sizes(tmp_path: Path) -> None:
+    # 4 iterations: the state passes from one size to the other and back.
+    straight = train(tiny_config(tmp_path / "a", **MIXED, **{"run.iterations": 4}),
                      progress=False)
     assert straight.iteration == 4
     assert straight.env_steps == (2 * 64 + 2 * 32) * STEPS
@@ -558,8 +557,15 @@ def test_a_mixed_run_trains_one_state_at_two_sizes_and_resumes_bit_for_bit(
         np.diff(curves["time/env_steps"].values, prepend=0.0),
         [64 * STEPS] * 2 + [32 * STEPS] * 2,
     )
-    # Stopped after the first chunk and resumed: the same schedule, the same bits.
-    first = tiny_config(tmp_path / "b", **mixed, **{"run.iterations": 2})
+
+
+@pytest.mark.slow
+def test_a_mixed_run_resumes_bit_for_bit(tmp_path: Path) -> None:
+    # Stopped after the first chunk and resumed on the second size's chunk (the schedule's
+    # position comes back with the checkpoint): the same schedule, the same bits.
+    straight = train(tiny_config(tmp_path / "a", **MIXED, **{"run.iterations": 4}),
+                     progress=False)
+    first = tiny_config(tmp_path / "b", **MIXED, **{"run.iterations": 2})
     train(first, progress=False)
     resumed = train(
         dataclasses.replace(first, run=dataclasses.replace(first.run, iterations=4)),

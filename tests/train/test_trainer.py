@@ -544,13 +544,20 @@ MIXED = {"env.mix": ("2v2",), "env.mix_shares": (0.5,), "run.eval_every": 0,
          "opponent.mix": ("naive=0.25",)}
 
 
-def test_a_mixed_run_trains_one_state_at_two_sizes(tmp_path: Path) -> None:
-    # 4 iterations: the state passes from one size to the other and back.
-    straight = train(tiny_config(tmp_path / "a", **MIXED, **{"run.iterations": 4}),
-                     progress=False)
+@pytest.fixture(scope="module")
+def mixed_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Any]:
+    """The directory and result of a 4-iteration mixed run, trained once for both tests that
+    read it: the state passes from one size to the other and back."""
+    run_dir = tmp_path_factory.mktemp("mixed") / "a"
+    return run_dir, train(tiny_config(run_dir, **MIXED, **{"run.iterations": 4}),
+                          progress=False)
+
+
+def test_a_mixed_run_trains_one_state_at_two_sizes(mixed_run: tuple[Path, Any]) -> None:
+    run_dir, straight = mixed_run
     assert straight.iteration == 4
     assert straight.env_steps == (2 * 64 + 2 * 32) * STEPS
-    curves = read_metrics_csv(tmp_path / "a")
+    curves = read_metrics_csv(run_dir)
     np.testing.assert_array_equal(curves["env/players_per_team"].values, [1, 1, 2, 2])
     assert len(curves["opponent/naive/outcome"].values) == 4  # both sizes met the fixed team
     np.testing.assert_array_equal(
@@ -560,11 +567,12 @@ def test_a_mixed_run_trains_one_state_at_two_sizes(tmp_path: Path) -> None:
 
 
 @pytest.mark.slow
-def test_a_mixed_run_resumes_bit_for_bit(tmp_path: Path) -> None:
+def test_a_mixed_run_resumes_bit_for_bit(
+    tmp_path: Path, mixed_run: tuple[Path, Any],
+) -> None:
     # Stopped after the first chunk and resumed on the second size's chunk (the schedule's
     # position comes back with the checkpoint): the same schedule, the same bits.
-    straight = train(tiny_config(tmp_path / "a", **MIXED, **{"run.iterations": 4}),
-                     progress=False)
+    _, straight = mixed_run
     first = tiny_config(tmp_path / "b", **MIXED, **{"run.iterations": 2})
     train(first, progress=False)
     resumed = train(

@@ -94,6 +94,9 @@ def test_a_raw_key_is_refused() -> None:
         actor.act(actor.init_carry(1, 1), obs, jnp.zeros((1, 1), bool), jax.random.PRNGKey(0))
 
 
+# Slow: eager JAX compiles each op on first use (about 12 s a process before the first step);
+# the game's own jit / eager agreement stays in the default suite (tests/env/test_soccer.py).
+@pytest.mark.slow
 def test_jit_and_eager_unroll_agree() -> None:
     # Eager runs op by op, seconds a step: two steps carry one step's state into the next.
     env, params = elevens.make("2v2", episode_length=2)

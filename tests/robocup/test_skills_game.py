@@ -100,7 +100,7 @@ def _scene(n: int, positions: list[list[float]], headings: list[float] | None = 
            ball_velocity: tuple[float, float] = (0.0, 0.0)) -> tuple[SkillSoccer, Any, State]:
     env = SkillSoccer(n)
     params = env.default_params(episode_length=400)
-    start, _ = env.reset(jax.random.key(0), params)
+    start, _ = jax.jit(env.reset)(jax.random.key(0), params)  # eager, each op would compile
     where = jnp.asarray(positions, jnp.float32)
     return env, params, start.replace(
         positions=where, start_positions=where, velocities=jnp.zeros((2 * n, 2)),
@@ -248,18 +248,24 @@ def test_a_tackle_wins_the_ball_with_the_servers_probability() -> None:
 def _random_game(n: int = 2) -> tuple[SkillSoccer, Any, State, jax.Array]:
     env = SkillSoccer(n)
     params = env.default_params(episode_length=50)
-    start, _ = env.reset(jax.random.key(5), params)
+    start, _ = jax.jit(env.reset)(jax.random.key(5), params)  # eager, each op would compile
     return env, params, start, env.sample_actions(jax.random.key(6))
 
 
-def test_jit_equals_eager_and_vmap_equals_one_game_at_a_time() -> None:
+# Slow: eager JAX compiles each op of the skill step on first use (about 30 s in the suite).
+@pytest.mark.slow
+def test_jit_equals_eager() -> None:
     env, params, start, actions = _random_game()
     key = jax.random.key(7)
     eager = env.step(key, start, actions, params)
-    one = jax.jit(env.step)
-    jitted = one(key, start, actions, params)
+    jitted = jax.jit(env.step)(key, start, actions, params)
     for a, b in zip(jax.tree.leaves(eager), jax.tree.leaves(jitted), strict=True):
         np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-5, atol=1e-5)
+
+
+def test_vmap_equals_one_game_at_a_time() -> None:
+    env, params, _, _ = _random_game()
+    one = jax.jit(env.step)
     keys = jax.random.split(jax.random.key(8), 3)
     # Compiled: the batch's starts are set-up (eager JAX would compile each op of the reset).
     starts, _ = jax.jit(jax.vmap(env.reset, in_axes=(0, None)))(keys, params)
@@ -357,14 +363,18 @@ def test_skills_naive_decides_alike_on_either_side() -> None:
     mirror_positions = [[-x, -y] for x, y in positions[2:] + positions[:2]]
     mirror_headings = [h + np.pi for h in headings[2:] + headings[:2]]
     _, _, mirror = _scene(2, mirror_positions, mirror_headings, ball=(-20.6, -1.4))
+    # Compiled: eager, the team's and the step's ops would each compile on first use (25 s).
     team = SkillsNaiveTeam()
-    here = team.play(env.observe(scene, params).team(0))
-    there = team.play(env.observe(mirror, params).team(1))
+    play = jax.jit(lambda state, side: team.play(env.observe(state, params).team(side)),
+                   static_argnums=1)
+    step = jax.jit(env.step)
+    here = play(scene, 0)
+    there = play(mirror, 1)
     np.testing.assert_allclose(np.asarray(there), np.asarray(here), atol=1e-4)
     assert int(here[1, 0]) == PASS or int(here[1, 0]) == d.DRIBBLE  # 32 m out: no shot
     idle = jnp.tile(jnp.array([GO_TO, 0.0, 0.0, 0.0]), (2, 1))
-    after, *_ = env.step(jax.random.key(1), scene, jnp.stack([here, idle]), params)
-    mirrored, *_ = env.step(jax.random.key(1), mirror, jnp.stack([idle, there]), params)
+    after, *_ = step(jax.random.key(1), scene, jnp.stack([here, idle]), params)
+    mirrored, *_ = step(jax.random.key(1), mirror, jnp.stack([idle, there]), params)
     np.testing.assert_allclose(-np.asarray(mirrored.ball_position),
                                np.asarray(after.ball_position), atol=1e-4)
     np.testing.assert_allclose(-np.asarray(mirrored.positions[2:]),
@@ -380,7 +390,7 @@ def _ball_in_reach_of(in_reach: int, games: int = 16,
     rng = np.random.default_rng(seed)
     env = SkillSoccer(11)
     params = env.default_params()
-    starts, _ = jax.vmap(env.reset, in_axes=(0, None))(
+    starts, _ = jax.jit(jax.vmap(env.reset, in_axes=(0, None)))(
         jax.random.split(jax.random.key(seed), games), params)
     ball = rng.uniform([-40.0, -25.0], [40.0, 25.0], (games, 1, 2))
     positions = np.asarray(starts.positions, np.float64)
@@ -446,9 +456,9 @@ def test_beyond_four_in_reach_only_the_four_nearest_play_the_ball() -> None:
     assert farther.sum(axis=1).tolist() == [2] * len(gap)
     env, every_env = SkillSoccer(11), SkillSoccer(11)
     every_env.kickers = None
-    decoded = jax.vmap(env.decode, in_axes=(0, 0, None))(states, shoot, params).kind
+    decoded = jax.jit(jax.vmap(env.decode, in_axes=(0, 0, None)))(states, shoot, params).kind
     np.testing.assert_array_equal(np.asarray(decoded)[farther], INTERCEPT)
-    decoded = jax.vmap(every_env.decode, in_axes=(0, 0, None))(states, shoot, params).kind
+    decoded = jax.jit(jax.vmap(every_env.decode, in_axes=(0, 0, None)))(states, shoot, params).kind
     np.testing.assert_array_equal(np.asarray(decoded)[farther], SHOOT)
     # The farther two never kick (with every player's plans some of them do); the four
     # nearest kick as they would with every player's plans.
@@ -509,16 +519,21 @@ def test_skills_naive_plays_its_own_decisions_in_the_simulator() -> None:
     # logic, and the game decodes exactly those decisions.
     env, params, start = _scene(2, [[-45.0, 2.0], [30.0, 1.0], [45.0, 0.0], [40.0, -10.0]],
                                 [0.0, 0.3, 3.1, 3.1], ball=(30.6, 1.0))
-    obs = env.observe(start, params)
     team = SkillsNaiveTeam()
-    actions = jnp.stack([team.play(obs.team(0)), team.play(obs.team(1))])
-    choice = env.decode(start, actions, params)
-    view, _ = skill_observation(obs.team(0), team.field)
-    kind, _, point = naive_choices(view, jnp)
+
+    @jax.jit  # eager, each op would compile on first use (about 10 s)
+    def decide(start: State) -> tuple[Any, Any, jax.Array, jax.Array]:
+        obs = env.observe(start, params)
+        actions = jnp.stack([team.play(obs.team(0)), team.play(obs.team(1))])
+        view, _ = skill_observation(obs.team(0), team.field)
+        kind, _, point = naive_choices(view, jnp)
+        return env.decode(start, actions, params), view.pos, kind, point
+
+    choice, view_pos, kind, point = decide(start)
     assert np.asarray(choice.kind[:2]).tolist() == np.asarray(kind).tolist()
     assert int(choice.kind[1]) == SHOOT  # 22.5 m out of the goal, the ball in reach
     np.testing.assert_allclose(np.asarray(choice.point[:2]), np.asarray(point), atol=1e-3)
-    np.testing.assert_allclose(np.asarray(view.pos), np.asarray(start.positions[:2]), atol=1e-3)
+    np.testing.assert_allclose(np.asarray(view_pos), np.asarray(start.positions[:2]), atol=1e-3)
 
 
 def test_two_players_on_one_ball_do_not_stall_the_game() -> None:

@@ -522,7 +522,7 @@ def test_skills_naive_plays_its_own_decisions_in_the_simulator() -> None:
     team = SkillsNaiveTeam()
 
     @jax.jit  # eager, each op would compile on first use (about 10 s)
-    def decide(start: State) -> tuple[Any, Any, jax.Array, jax.Array]:
+    def decide(start: State) -> tuple[Any, jax.Array, jax.Array, jax.Array]:
         obs = env.observe(start, params)
         actions = jnp.stack([team.play(obs.team(0)), team.play(obs.team(1))])
         view, _ = skill_observation(obs.team(0), team.field)

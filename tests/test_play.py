@@ -49,7 +49,7 @@ def _positions(view: StepView) -> jax.Array:
 
 def _play(env, params, home, away, keys, sides, record=_positions):  # type: ignore[no-untyped-def]
     reset_keys, play_keys = jnp.moveaxis(jax.vmap(jax.random.split)(keys), 1, 0)
-    states, _ = jax.vmap(env.reset, in_axes=(0, None))(reset_keys, params)
+    states, _ = jax.jit(jax.vmap(env.reset, in_axes=(0, None)))(reset_keys, params)
     steps = int(params.episode_length)
     return unroll(
         env, params, home, away, states, jnp.asarray(sides),
@@ -132,7 +132,7 @@ def test_each_block_plays_as_if_alone() -> None:
     home = PolicyActor(TeamworkTeam())
     mixed = BlockActor(actors=(PolicyActor(NaiveTeam()), PolicyActor(RandomTeam())), games=(2, 3))
     reset_keys, play_keys = jnp.moveaxis(jax.vmap(jax.random.split)(keys), 1, 0)
-    states, _ = jax.vmap(env.reset, in_axes=(0, None))(reset_keys, params)
+    states, _ = jax.jit(jax.vmap(env.reset, in_axes=(0, None)))(reset_keys, params)
     # One key a step for the away team as a whole, as a training rollout draws it.
     step_keys = per_game_step_keys(play_keys, 20)
     step_keys = step_keys.replace(away=step_keys.away[:, 0])

@@ -57,17 +57,18 @@ def test_possession_in_played_games_matches_ball_holder_under_jit_and_vmap():
     params = params.replace(possession_shaping_weight=0.02, possession_radius=5.0)
     games = 16
     keys = jax.random.split(jax.random.key(3), games)
-    states, _ = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
+    states, _ = jax.jit(jax.vmap(env.reset, in_axes=(0, None)))(keys, params)
     step = jax.jit(jax.vmap(env.step, in_axes=(0, 0, 0, None)))
+    one_game = jax.jit(env.step)  # (eager against jit: tests/env/test_soccer.py)
     held = []
     for t in range(50):
         actions = jax.random.uniform(jax.random.key(t), (games, 2, 3, 2), minval=-1, maxval=1)
         step_keys = jax.random.split(jax.random.key(100 + t), games)
-        if t < 3:  # eager, one game, agrees with the compiled batch
-            eager = env.step(step_keys[0], jax.tree.map(lambda x: x[0], states), actions[0], params)
+        if t < 3:  # one game alone agrees with the batch
+            alone = one_game(step_keys[0], jax.tree.map(lambda x: x[0], states), actions[0], params)
         states, _, rewards, _, info = step(step_keys, states, actions, params)
         if t < 3:
-            np.testing.assert_allclose(np.asarray(eager[2]), np.asarray(rewards[0]), atol=1e-6)
+            np.testing.assert_allclose(np.asarray(alone[2]), np.asarray(rewards[0]), atol=1e-6)
         holder = np.asarray(info.holder)  # [G, 2]
         np.testing.assert_array_equal(holder[:, 0], -holder[:, 1])
         expected = np.repeat(0.02 * holder[:, :, None], 3, axis=2)
@@ -103,7 +104,7 @@ def test_possession_by_touch_is_the_last_touching_team_in_played_games():
         field_length=30.0, field_width=20.0, goal_width=14.0, possession_shaping_weight=0.01
     )
     games = 8
-    states, _ = jax.vmap(env.reset, in_axes=(0, None))(
+    states, _ = jax.jit(jax.vmap(env.reset, in_axes=(0, None)))(
         jax.random.split(jax.random.key(5), games), params
     )
     assert (np.asarray(states.last_touch) == -1).all()
@@ -127,6 +128,6 @@ def test_possession_by_touch_is_the_last_touching_team_in_played_games():
         seen.update(expected[:, 0].tolist())
     assert seen == {-1.0, 0.0, 1.0}, "not every holder came up: the test proves nothing"
     hand_built = dataclasses.replace(jax.tree.map(lambda x: x[0], states), last_touch=None)
-    after, _, _, _, info = env.step(jax.random.key(0), hand_built, actions[0], params)
+    after, _, _, _, info = jax.jit(env.step)(jax.random.key(0), hand_built, actions[0], params)
     assert after.last_touch is None
     np.testing.assert_array_equal(np.asarray(info.holder), [0.0, 0.0])

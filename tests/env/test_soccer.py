@@ -125,7 +125,7 @@ def test_step_compiles_once_per_shape():
 def test_vmap_over_64_games_equals_python_loop():
     env, params = elevens.make("2v2")
     keys = jax.random.split(jax.random.key(3), 64)
-    states, _ = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
+    states, _ = jax.jit(jax.vmap(env.reset, in_axes=(0, None)))(keys, params)
     actions = random_actions(jax.random.key(4), 2, (64,))
     step_keys = jax.random.split(jax.random.key(5), 64)
     batched = jax.jit(jax.vmap(env.step, in_axes=(0, 0, 0, None)))(
@@ -207,7 +207,7 @@ def test_side_symmetry(players):
         f"{players}v{players}", spawn_noise=0.0, heading_noise=0.0, ball_spawn="centre"
     )
     params = params.replace(field_length=40.0, field_width=30.0, goal_width=20.0)
-    state, _ = env.reset(jax.random.key(0), params)
+    state, _ = jax.jit(env.reset)(jax.random.key(0), params)
     state = state.replace(ball_position=jnp.array([3.0, -2.0]))
     mirrored = reflect(state, players)
     step = jax.jit(env.step)
@@ -249,7 +249,7 @@ def test_wrong_action_shape_is_an_error_in_step():
 @pytest.mark.parametrize("spawn", ["formation", "random"])
 def test_reset_spawns_in_own_half(spawn):
     env, params = elevens.make("11v11", spawn=spawn)
-    states, _ = jax.vmap(env.reset, in_axes=(0, None))(
+    states, _ = jax.jit(jax.vmap(env.reset, in_axes=(0, None)))(
         jax.random.split(jax.random.key(0), 200), params
     )
     positions = np.asarray(states.positions)

@@ -252,7 +252,7 @@ def test_rcss_soccer_jit_vmap_and_eager_agree_and_a_seed_repeats() -> None:
     env = rcss.RcssSoccer(2)
     params = env.default_params(episode_length=40)
     keys = jax.random.split(jax.random.key(5), 3)
-    states, _ = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
+    states, _ = jax.jit(jax.vmap(env.reset, in_axes=(0, None)))(keys, params)
     actions = jax.random.uniform(jax.random.key(6), (3, 2, 2, 12), minval=-1.0, maxval=1.0)
     step = jax.jit(jax.vmap(env.transition, in_axes=(0, 0, 0, None)))
     batched, rewards, _, _ = step(keys, states, actions, params)

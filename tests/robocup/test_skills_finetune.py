@@ -151,12 +151,13 @@ def test_server_cycles_pack_into_the_learners_rollout(tmp_path: Path) -> None:
     # With a teacher (ppo.teacher): its action on every recorded observation, as it plays
     # each cycle's observations itself; the rest of the rollout is unchanged.
     teacher = SkillsNaiveTeam()
+    play = jax.jit(teacher.play)  # compiled once: op by op it is 350 compiles
     taught, _ = pack([segment], STEPS, learner.policy, games.params, shaping=False,
                      teacher=teacher_actions(Teacher(teacher, None)), key=jax.random.key(3))
     action = np.asarray(taught.transitions.teacher_action)
     assert action.shape == (11, STEPS, 4)
     for step in range(STEPS):
-        played = teacher.play(jax.tree.map(lambda leaf, step=step: leaf[:, step], t.obs))
+        played = play(jax.tree.map(lambda leaf, step=step: leaf[:, step], t.obs))
         np.testing.assert_allclose(action[:, step], np.asarray(played), atol=1e-6)
     assert len(np.unique(action[..., 0].round(3))) > 1  # not one kind for everyone
     np.testing.assert_array_equal(np.asarray(taught.transitions.reward), reward)

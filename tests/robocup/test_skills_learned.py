@@ -94,8 +94,9 @@ def test_a_team_trained_with_reach_features_reads_librcscs_intercept_table(
     # reads), so the converted features equal the game's.
     params, current, _ = _moving(11)
     to_arrays = jax.jit(lambda o: vars(skill_observation(o, SKILLS_FIELD)[0]))
+    observe = jax.jit(SkillSoccer(11, reach=True).observe)  # op by op: 120 compiles
     for team in (0, 1):
-        sim = SkillSoccer(11, reach=True).observe(current, params).team(team)
+        sim = observe(current, params).team(team)
         leaves = {k: np.asarray(v) for k, v in to_arrays(sim).items()}
         arrays = SkillObservation(**{**leaves, "cycle": np.full(11, int(current.step))})
         back = sim_observation(arrays, episode_length=params.episode_length, reach=True)
@@ -121,7 +122,7 @@ def test_a_team_trained_with_reach_features_reads_librcscs_intercept_table(
 
     (teams,), env, game = _teams_and_env(((str(tmp_path), str(trained)),), 2, 4, True, 1)
     assert env.reach and [t.policy.self_features for t in teams] == [18, 15]
-    _, obs = env.reset(jax.random.key(0), game)
+    _, obs = jax.jit(env.reset)(jax.random.key(0), game)
     plain = teams[1]
     _, actions = jax.jit(plain.policy.act)(plain.params, plain.policy.init_carry(2), obs.team(1),
                                            jax.random.key(1))

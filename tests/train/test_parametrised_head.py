@@ -128,11 +128,11 @@ def test_ppo_updates_the_parametrised_policy_and_its_export_plays(tmp_path: Path
     env, params, policy = learner.env, learner.env_params, learner.policy
     games, n, steps = 8, 2, 4
     state = learner.init(jax.random.key(0))
-    starts = jax.vmap(env.reset, in_axes=(0, None))(jax.random.split(jax.random.key(1), games),
-                                                    params)
+    starts = jax.jit(jax.vmap(env.reset, in_axes=(0, None)))(
+        jax.random.split(jax.random.key(1), games), params)
     obs = jax.tree.map(lambda x: x[:, 0], starts[1])  # side 0's players, leading [G, n]
-    global_state = jax.tree.map(lambda x: x[:, 0], jax.vmap(env.global_state, in_axes=(0, None))(
-        starts[0], params))
+    global_states = jax.jit(jax.vmap(env.global_state, in_axes=(0, None)))(starts[0], params)
+    global_state = jax.tree.map(lambda x: x[:, 0], global_states)
 
     @jax.jit
     def play(policy_params: Any, key: jax.Array) -> Any:

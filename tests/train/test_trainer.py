@@ -168,7 +168,7 @@ def test_configs_with_the_same_networks_share_their_initialisation() -> None:
     # The shared initialiser feeds zeros for the inputs; the parameters are those of an init on
     # a real game's observation and global state (they depend on the shapes only).
     env, params = trainer.env, trainer.env_params
-    game, obs = env.reset(jax.random.key(0), params)
+    game, obs = jax.jit(env.reset)(jax.random.key(0), params)
     policy_key, critic_key, _ = jax.random.split(jax.random.key(4), 3)
     n = env.players_per_team
     on_a_game = jax.jit(
@@ -522,8 +522,12 @@ def test_a_run_starts_from_another_team_sizes_networks(tmp_path: Path) -> None:
     assert result.iteration == 2
     trained = teams_module.load_learner_params(str(tmp_path / "run"))[1]
 
+    @jax.jit  # op by op: a compile for each leaf's shape
+    def norm(a: Any, b: Any) -> jax.Array:
+        return optax.tree.norm(jax.tree.map(jnp.subtract, a, b))
+
     def distance(a: Any, b: Any) -> float:
-        return float(optax.tree.norm(jax.tree.map(jnp.subtract, a, b)))
+        return float(norm(a, b))
 
     assert distance(trained, source) < 0.25 * distance(fresh.params, source)
     # Other networks are refused before anything is written, naming the flag to pass.

@@ -68,6 +68,11 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
 
 def pytest_addoption(parser: pytest.Parser) -> None:
     parser.addoption("--slow", action="store_true", default=False, help="run slow tests too")
+    parser.addoption(
+        "--compile-log", metavar="FILE", default=None,
+        help="append a line per test: its seconds, XLA compiles and seconds compiling, and "
+             "its id (each worker of pytest -n to FILE.<worker>); many compiles in a test "
+             "not about eager JAX mean code running op by op")
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
@@ -77,3 +82,40 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     for item in items:
         if "slow" in item.keywords:
             item.add_marker(skip_slow)
+
+
+# --compile-log: XLA compiles counted per test through jax.monitoring, written where the tests
+# run (a worker of pytest -n, or the one process of -n 0; not xdist's controlling process).
+_COMPILES = {"count": 0, "seconds": 0.0}
+_TEST_SECONDS: dict[str, float] = {}
+_COMPILE_LOG: list[str] = []
+
+
+def _count_compile(event: str, duration_secs: float, **_: str | int) -> None:
+    if event == "/jax/core/compile/backend_compile_duration":
+        _COMPILES["count"] += 1
+        _COMPILES["seconds"] += duration_secs
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    path = config.getoption("--compile-log")
+    worker = os.environ.get("PYTEST_XDIST_WORKER")
+    controller = worker is None and bool(config.getoption("numprocesses", None))
+    if path and not controller:
+        _COMPILE_LOG.append(f"{path}.{worker}" if worker else str(path))
+        jax.monitoring.register_event_duration_secs_listener(_count_compile)
+
+
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    _COMPILES["count"], _COMPILES["seconds"] = 0, 0.0
+
+
+def pytest_runtest_logreport(report: pytest.TestReport) -> None:
+    if not _COMPILE_LOG:
+        return
+    _TEST_SECONDS[report.nodeid] = _TEST_SECONDS.get(report.nodeid, 0.0) + report.duration
+    if report.when == "teardown":
+        seconds = _TEST_SECONDS.pop(report.nodeid)
+        with open(_COMPILE_LOG[0], "a", encoding="utf-8") as f:
+            f.write(f"{seconds:.2f} {_COMPILES['count']} {_COMPILES['seconds']:.2f} "
+                    f"{report.nodeid}\n")

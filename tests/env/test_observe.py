@@ -22,7 +22,7 @@ S = {name: i for i, name in enumerate(SELF_FEATURES)}
 
 def random_state(players: int, steps: int = 30, seed: int = 0):  # type: ignore[no-untyped-def]
     env, params = make_env(players)
-    state, _ = env.reset(jax.random.key(seed), params)
+    state, _ = jax.jit(env.reset)(jax.random.key(seed), params)
     step = jax.jit(env.step)
     for i in range(steps):
         action_key = jax.random.fold_in(jax.random.key(seed + 1), i)
@@ -55,7 +55,7 @@ def test_field_of_view_boundary(angle_deg, visible):
 
 def test_shapes_and_slot_layout_11v11():
     env, params, state = random_state(11)
-    obs = env.observe(state, params)
+    obs = jax.jit(env.observe)(state, params)  # (op by op: test_observe_jit_matches_eager)
     assert obs.self_features.shape == (2, 11, NUM_SELF_FEATURES)
     assert obs.entities.shape == (2, 11, 22, NUM_ENTITY_FEATURES)
     assert obs.entity_mask.shape == (2, 11, 22)
@@ -106,7 +106,7 @@ def reference_entities(state, params):  # type: ignore[no-untyped-def]
 @pytest.mark.parametrize("players", [1, 2, 5])
 def test_entities_match_numpy_reference(players):
     env, params, state = random_state(players, steps=40, seed=players)
-    obs = env.observe(state, params)
+    obs = jax.jit(env.observe)(state, params)
     expected, mask = reference_entities(state, params)
     np.testing.assert_array_equal(obs.entity_mask, mask)
     np.testing.assert_allclose(obs.entities, expected, atol=2e-5)
@@ -175,5 +175,5 @@ def test_observe_jit_matches_eager_and_vmaps():
     for a, b in zip(jax.tree.leaves(eager), jax.tree.leaves(jitted), strict=True):
         np.testing.assert_allclose(a, b, atol=1e-6)
     batch = jax.tree.map(lambda x: jnp.stack([x, x]), state)
-    batched = jax.vmap(observe, in_axes=(0, None))(batch, params)
+    batched = jax.jit(jax.vmap(observe, in_axes=(0, None)))(batch, params)
     np.testing.assert_allclose(batched.entities[1], eager.entities, atol=1e-6)

@@ -163,16 +163,17 @@ def test_handcrafted_teams_play_each_drawn_game_on_its_own_field() -> None:
     carry = PolicyActor(team).init_carry(2, 2)
     keys = jax.random.split(jax.random.key(3), 2)
     team_obs = obs.team(0)
-    _, drawn_actions, _ = PolicyActor(team, None, games).act(
+    _, drawn_actions, _ = jax.jit(PolicyActor(team, None, games).act)(
         carry, team_obs, jnp.ones((2, 2), bool), keys
     )
     for g in range(2):
         fielded = dataclasses.replace(team, field=Field.of(one_game(games, g)))
         one = jax.tree.map(lambda leaf, g=g: leaf[g], team_obs)
-        _, expected = fielded.act(None, team.init_carry(2), one, keys[g])
+        _, expected = jax.jit(fielded.act)(None, team.init_carry(2), one, keys[g])
         np.testing.assert_allclose(drawn_actions[g], expected, rtol=1e-5, atol=1e-5)
     # ...which is not what the team does on SPEC.md's field.
-    _, default_actions, _ = PolicyActor(team).act(carry, team_obs, jnp.ones((2, 2), bool), keys)
+    _, default_actions, _ = jax.jit(PolicyActor(team).act)(carry, team_obs, jnp.ones((2, 2), bool),
+                                                           keys)
     assert not np.allclose(drawn_actions, default_actions)
 
 

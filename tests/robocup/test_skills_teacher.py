@@ -216,10 +216,9 @@ def test_the_first_mask_allows_skills_naives_kind_where_the_nearest_mask_does_no
     allowed_nearest = (nearest & rows).any(-1).mean()
     assert allowed_first > 0.995 and allowed_first > allowed_nearest
     assert (first & rows)[..., 4].sum() / runs > 0.99
+    without_reach = jax.jit(lambda k: SkillSoccer(11).observe(env.reset(k, params)[0], params))
     with pytest.raises(ValueError, match=r"ball_first.*needs --env.reach-features"):
-        first_kind_mask(jax.jit(lambda k: SkillSoccer(11).observe(env.reset(k, params)[0],
-                                                                  params))(jax.random.key(0))
-                        .team(0))
+        first_kind_mask(without_reach(jax.random.key(0)).team(0))
 
 
 def test_the_nearest_mask_sends_the_player_nearest_the_ball_and_places_the_rest() -> None:

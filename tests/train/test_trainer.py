@@ -523,11 +523,8 @@ def test_a_run_starts_from_another_team_sizes_networks(tmp_path: Path) -> None:
     trained = teams_module.load_learner_params(str(tmp_path / "run"))[1]
 
     @jax.jit  # op by op: a compile for each leaf's shape
-    def norm(a: Any, b: Any) -> jax.Array:
+    def distance(a: Any, b: Any) -> jax.Array:
         return optax.tree.norm(jax.tree.map(jnp.subtract, a, b))
-
-    def distance(a: Any, b: Any) -> float:
-        return float(norm(a, b))
 
     assert distance(trained, source) < 0.25 * distance(fresh.params, source)
     # Other networks are refused before anything is written, naming the flag to pass.

@@ -78,6 +78,9 @@ NUMERIC_RANGES: dict[str, tuple[float, float]] = {
     "minibatch_size": (1, math.inf),
     "deadline_ms": (1.0, 10_000.0),
     "gather_ms": (0.1, 10_000.0),
+    "top_k": (1, math.inf),
+    "explore": (0.0, 1.0),
+    "l2": (0.0, math.inf),
 }
 """Every numeric field of the subcommands' args, by name (tests/test_cli.py checks that none is
 missing). Finer checks that need the game (``--view`` against the players) come later."""

@@ -7,8 +7,10 @@ from __future__ import annotations
 import gc
 import json as json_lib
 from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import Annotated
 
+import numpy as np
 import tyro
 
 from elevens.cli.checks import EXIT_INTERRUPTED, Commands, exit_with_error
@@ -153,7 +155,86 @@ def skills_train(args: RoboCupSkillsTrainArgs) -> None:
         raise SystemExit(EXIT_INTERRUPTED)
 
 
+@dataclass(frozen=True)
+class ChainsInitArgs:
+    """Write a chain chooser (docs/robocup_skills.md): skills_helios_parts with its ball
+    holder's chain chosen by elevens, helios-base's own choice to start with, that plays a
+    uniform one of the top --top-k chains --explore of the time and records its choices in
+    --record-dir. Play it by its path: elevens robocup match --team0 FILE ..."""
+
+    out: str
+    """The chooser's file (.json)."""
+    top_k: int = 4
+    """The chains of helios-base's best evaluations it picks among."""
+    explore: float = 0.0
+    """How often it plays a uniform one of them instead (0 to 1)."""
+    record_dir: str | None = None
+    """Where it records its choices: give each match its own folder, its --log-dir."""
+    seed: int = 0
+    """The exploring generator's seed (each process adds its pid)."""
+
+
+def chains_init(args: ChainsInitArgs) -> None:
+    from elevens.robocup.skills.chains import ChooserSpec, save_chooser
+
+    if not args.out.endswith(".json"):
+        raise ValueError(f"--out {args.out!r} is invalid (allowed: a .json file)")
+    record = None if args.record_dir is None else str(Path(args.record_dir).resolve())
+    save_chooser(args.out, ChooserSpec(top_k=args.top_k, explore=args.explore,
+                                       seed=args.seed, record_dir=record))
+    print(f"wrote {args.out}")
+
+
+@dataclass(frozen=True)
+class ChainsFitArgs:
+    """Fit a chain chooser's weights on the matches an exploring chooser recorded: each
+    choice's outcome read from its match's game log (the possession value 50 cycles on less
+    the value then; a goal in between counts +1 or -1), a ridge regression on the chosen
+    chains' features, and estimates on each match held out in turn."""
+
+    matches: tuple[str, ...]
+    """Match folders, each the --record-dir of one match (its records and its .rcg)."""
+    out: str
+    """The fitted chooser's file (.json): top-k as recorded, no exploring, no recording."""
+    team: str = "elevens"
+    """Our team's name in the game logs."""
+    values_from: tuple[str, ...] = ()
+    """More game logs (folders or .rcg) for the possession values, beside the matches'."""
+    l2: float = 10.0
+    """The ridge penalty."""
+    top_k: int = 4
+    """The fitted chooser's top-k (the exploring one's)."""
+
+
+def chains_fit(args: ChainsFitArgs) -> None:
+    from elevens.robocup.rcg import find_logs, read_rcg
+    from elevens.robocup.skills.chains import (
+        ChooserSpec,
+        fit_chooser,
+        label_records,
+        match_records,
+        possession_values,
+        save_chooser,
+    )
+
+    if not args.out.endswith(".json"):
+        raise ValueError(f"--out {args.out!r} is invalid (allowed: a .json file)")
+    found = match_records(args.matches)
+    logs = [read_rcg(path) for _, path in found]
+    extra = [read_rcg(p) for p in find_logs(list(args.values_from))] if args.values_from else []
+    values = possession_values(logs + extra, args.team)
+    labelled = [(records, label_records(records, log, args.team, values))
+                for (records, _), log in zip(found, logs, strict=True)]
+    report = fit_chooser(labelled, args.l2)
+    fit = {**report.as_dict(), "matches_fitted": list(args.matches), "l2": args.l2,
+           "values": np.round(values, 4).tolist()}
+    save_chooser(args.out, ChooserSpec(weights=report.weights, top_k=args.top_k, fit=fit))
+    print(json_lib.dumps({k: v for k, v in fit.items() if k != "values"}))
+
+
 COMMANDS: Commands = {
+    "robocup-chains-init": (ChainsInitArgs, chains_init),
+    "robocup-chains-fit": (ChainsFitArgs, chains_fit),
     "robocup-skills-team": (RoboCupSkillsTeamArgs, skills_team),
     TRAIN_COMMAND: (RoboCupSkillsTrainArgs, skills_train),
 }

@@ -84,9 +84,15 @@ SKILLS: dict[str, Callable[[str], Decide]] = {
 
 
 def check_skills_policy(spec: str) -> None:
-    """ValueError in one line unless ``spec`` is a skills team: a name of :data:`SKILLS`, or
-    a trained skills team (its config is read, not its networks)."""
+    """ValueError in one line unless ``spec`` is a skills team: a name of :data:`SKILLS`, a
+    chain chooser's file (``chains.py``), or a trained skills team (its config is read, not
+    its networks)."""
     if spec in SKILLS:
+        return
+    from elevens.robocup.skills.chains import is_chooser, load_chooser
+
+    if is_chooser(spec):
+        load_chooser(spec)
         return
     from elevens.robocup.skills.learned import check_skills_team
 
@@ -103,6 +109,11 @@ def skills_policy(spec: str, *, deterministic: bool = True,
     check_set_plays(set_plays)
     if spec in SKILLS:
         return SKILLS[spec](set_plays)
+    from elevens.robocup.skills.chains import ChainChooser, is_chooser, load_chooser
+
+    if is_chooser(spec):  # skills_helios_parts with its chain chosen by the file's weights
+        return _helios(choose=ChainChooser(load_chooser(spec)), on_ball=True,
+                       off_ball=True)(set_plays)
     from elevens.robocup.skills.learned import load_learned_skills
 
     return load_learned_skills(spec, deterministic=deterministic, set_plays=set_plays)

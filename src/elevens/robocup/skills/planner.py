@@ -17,10 +17,43 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["CATEGORIES", "Candidates", "Choose", "helios_best"]
+__all__ = ["CATEGORIES", "Candidates", "Choose", "Situation", "helios_best"]
 
 #: The proxy's ``RpcActionCategory`` names, by value.
 CATEGORIES = ("hold", "dribble", "pass", "shoot", "clear", "move", "none")
+
+
+@dataclasses.dataclass(frozen=True)
+class Situation:
+    """The asking player's world model when it searched (the request's ``state``): the cycle,
+    whether we play on the left, the score (ours, theirs), and the ball, the player and the
+    opponents seen (f32 [2], [2], [n, 2]) in librcsc's coordinates (we attack +x)."""
+
+    cycle: int
+    left: bool
+    score: tuple[int, int]
+    ball: np.ndarray
+    me: np.ndarray
+    opponents: np.ndarray
+
+    @staticmethod
+    def of(state: Any) -> Situation | None:
+        """The situation of a ``State`` (None without a world model)."""
+        wm = getattr(state, "world_model", None)
+        if wm is None:
+            return None
+
+        def xy(v: Any) -> tuple[float, float]:
+            p = getattr(v, "position", None)
+            return (0.0, 0.0) if p is None else (float(p.x or 0.0), float(p.y or 0.0))
+
+        opponents = [xy(o) for o in (wm.opponents or []) if getattr(o, "position", None)]
+        return Situation(
+            cycle=int(wm.cycle or 0), left=wm.our_side != 2,  # Side.RIGHT
+            score=(int(wm.our_team_score or 0), int(wm.their_team_score or 0)),
+            ball=np.array(xy(wm.ball), np.float32), me=np.array(xy(wm.myself), np.float32),
+            opponents=np.array(opponents, np.float32).reshape(-1, 2),
+        )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -32,7 +65,7 @@ class Candidates:
     first speed); ``steps`` int32 [k] (the chain's predicted cycles so far); ``holder`` int32
     [k] (who has the ball then); ``ball`` f32 [k, 2] (the ball then); ``evaluation`` f32 [k]
     (helios-base's evaluation of the chain ending there). Coordinates are librcsc's: we
-    attack +x."""
+    attack +x. ``situation``: the asking player's world model, when the request carried it."""
 
     index: np.ndarray
     parent: np.ndarray
@@ -44,14 +77,15 @@ class Candidates:
     holder: np.ndarray
     ball: np.ndarray
     evaluation: np.ndarray
+    situation: Situation | None = None
 
     def __len__(self) -> int:
         return len(self.index)
 
     @staticmethod
-    def of(pairs: dict[int, Any] | None) -> Candidates:
+    def of(pairs: dict[int, Any] | None, state: Any = None) -> Candidates:
         """The candidates of a ``BestPlannerActionRequest``'s ``pairs`` (unset fields read
-        as 0, a node without an action is skipped)."""
+        as 0, a node without an action is skipped) and its ``state``."""
         rows = sorted((k, v) for k, v in (pairs or {}).items() if v is not None and v.action)
 
         def num(x: Any) -> float:
@@ -75,6 +109,7 @@ class Candidates:
             ball=np.array([xy(p.ball_position) if p else (0.0, 0.0) for p in pred],
                           f32).reshape(-1, 2),
             evaluation=np.array([num(v.evaluation) for _, v in rows], f32),
+            situation=None if state is None else Situation.of(state),
         )
 
     def first_actions(self) -> np.ndarray:

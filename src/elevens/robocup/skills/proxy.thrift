@@ -324,10 +324,11 @@ struct RpcActionState {
   3: double evaluation
 }
 
-// Every node the planner searched, by its index (the state, field 3, is left unread).
+// Every node the planner searched, by its index, and the asking player's state.
 struct BestPlannerActionRequest {
   1: RegisterResponse register_response,
-  2: map<i32, RpcActionState> pairs
+  2: map<i32, RpcActionState> pairs,
+  3: State state
 }
 
 // The chosen node: the proxy plays the first action of the chain that ends there.

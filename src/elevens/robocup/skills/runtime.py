@@ -427,7 +427,7 @@ class DecisionServer:
     def _choose(self, request: Any) -> int:
         """The node of the planner's search the asking player plays: ``choose``'s, or
         helios-base's own when it fails or names a node that was not searched."""
-        candidates = Candidates.of(request.pairs)
+        candidates = Candidates.of(request.pairs, getattr(request, "state", None))
         unum = int(getattr(request.register_response, "uniform_number", 0) or 0)
         try:
             index = int(self.choose(unum, candidates))

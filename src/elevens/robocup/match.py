@@ -472,11 +472,10 @@ def parse_team(
         return ExternalTeam(cmd, name)
     assert spec is not None
     from elevens.robocup.skills import SKILLS
-
-    # A trained team plays through the skills proxy when its action is the skill decision.
     from elevens.robocup.skills.chains import is_chooser
     from elevens.robocup.skills.learned import is_skills_team
 
+    # A trained team plays through the skills proxy when its action is the skill decision.
     if spec in SKILLS or is_skills_team(spec) or is_chooser(spec):
         return SkillsTeam(spec, name, sample=sample, set_plays=set_plays)
     if set_plays != "routine":

@@ -55,7 +55,8 @@ __all__ = [
 
 FORMAT = "elevens-chain-chooser"
 EVAL_SCALE = 10.0
-"""helios-base's evaluations of one search differ by tens (its field evaluator counts metres)."""
+"""The evaluation feature's divisor (helios's top four of a search lie within about 1.3 of its
+best, median of one match; a fitted chooser's weights are on this scale)."""
 HALF_LENGTH, HALF_WIDTH = 52.5, 34.0
 _KINDS = CATEGORIES[:6]  # hold, dribble, pass, shoot, clear, move ("none" is never a node)
 
@@ -79,17 +80,6 @@ GOAL_HORIZON = 300
 LABEL_HORIZON = 50
 _X_BINS = 12
 _GOALS = ("goal_l", "goal_r")  # not goal_kick_l: a play mode, not a goal
-
-
-def _depths(c: Candidates) -> np.ndarray:
-    row = {int(i): r for r, i in enumerate(c.index)}
-    depth = np.ones(len(c), np.float32)
-    for r in range(len(c)):
-        p, seen = int(c.parent[r]), 0
-        while p in row and seen < len(c):
-            depth[r] += 1
-            p, seen = int(c.parent[row[p]]), seen + 1
-    return depth
 
 
 def _nearest(points: np.ndarray, others: np.ndarray) -> np.ndarray:
@@ -116,7 +106,7 @@ def chain_features(c: Candidates, unum: int = 0) -> np.ndarray:
         out[:, col[f"first_{kind}"]] = c.category[first] == j
         out[:, col[f"last_{kind}"]] = c.category == j
     end = c.ball
-    out[:, col["depth"]] = _depths(c) / 3.0
+    out[:, col["depth"]] = c.depths() / 3.0
     out[:, col["steps"]] = c.steps / 20.0
     out[:, col["end_x"]] = end[:, 0] / HALF_LENGTH
     out[:, col["end_abs_y"]] = np.abs(end[:, 1]) / HALF_WIDTH
@@ -246,6 +236,13 @@ class ChainChooser:
 # ---- learning from the records and the game logs ----
 
 
+def _goals(log: Any, side: int) -> list[tuple[int, float]]:
+    """Each goal of ``log``: the shows before it and +1 (``side``'s) or -1."""
+    ours = _GOALS[side]
+    return [(log.playmode_shows[i], 1.0 if mode == ours else -1.0)
+            for i, (_, mode) in enumerate(log.playmodes) if mode in _GOALS]
+
+
 def _our_view(log: Any, side: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per show of ``log``: the ball's x in ``side``'s frame, who touched it last (0 nobody,
     1 ``side``, 2 the other), and the next goal within GOAL_HORIZON cycles (+1, -1, 0)."""
@@ -255,10 +252,7 @@ def _our_view(log: Any, side: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     for show, team, _ in log.touches:
         last[int(show):] = 1 if int(team) == side else 2
     goal = np.zeros(len(x))
-    ours = "goal_l" if side == 0 else "goal_r"
-    goals = [(log.playmode_shows[i], 1.0 if mode == ours else -1.0)
-             for i, (_, mode) in enumerate(log.playmodes) if mode in _GOALS]
-    for show, value in goals:
+    for show, value in _goals(log, side):
         g_cycle = log.cycle[min(show, len(x) - 1)]
         window = (np.arange(len(x)) < show) & (log.cycle >= g_cycle - GOAL_HORIZON)
         window &= goal == 0
@@ -290,11 +284,9 @@ def label_records(records: Sequence[dict[str, Any]], log: Any, team: str,
     side = log.side_of(team)
     x, last, _ = _our_view(log, side)
     v = values[_bin(x), last]
-    ours = "goal_l" if side == 0 else "goal_r"
-    goal_show = np.array([log.playmode_shows[i] for i, (_, m) in enumerate(log.playmodes)
-                          if m in _GOALS], np.int64)
-    goal_value = np.array([1.0 if m == ours else -1.0 for _, m in log.playmodes
-                           if m in _GOALS])
+    goals = _goals(log, side)
+    goal_show = np.array([show for show, _ in goals], np.int64)
+    goal_value = np.array([value for _, value in goals])
     out = np.full(len(records), np.nan)
     for i, r in enumerate(records):
         s0 = int(np.searchsorted(log.cycle, r["cycle"]))
@@ -344,12 +336,11 @@ class FitReport:
 
 
 def _arrays(records: Sequence[dict[str, Any]]) -> tuple[list[np.ndarray], np.ndarray,
-                                                         np.ndarray, np.ndarray]:
+                                                         np.ndarray]:
     feats = [np.asarray(r["features"], np.float64).reshape(-1, len(FEATURES)) for r in records]
     chosen = np.array([r["chosen"] for r in records], np.int64)
-    greedy = np.array([r["greedy"] for r in records], np.int64)
     p = np.array([r["p"] for r in records], np.float64)
-    return feats, chosen, greedy, p
+    return feats, chosen, p
 
 
 def _ridge(feats: list[np.ndarray], chosen: np.ndarray, y: np.ndarray, l2: float) -> np.ndarray:
@@ -378,26 +369,19 @@ def fit_chooser(matches: Sequence[tuple[Sequence[dict[str, Any]], np.ndarray]],
     kept = [(r, y) for r, y in kept if len(r)]
     if not kept:
         raise ValueError("no labelled record to fit (each record's cycle must be in its log)")
-    picks_fit, picks_all, ys, chosen_all, p_all = [], [], [], [], []
-    for m, (records, y) in enumerate(kept):
-        feats, chosen, _, p = _arrays(records)
-        others = [kept[j] for j in range(len(kept)) if j != m] or [kept[m]]
-        of, oc, _, _ = zip(*(_arrays(r) for r, _ in others), strict=True)
-        w = _ridge([f for fs in of for f in fs], np.concatenate(oc),
-                   np.concatenate([yy for _, yy in others]), l2)
+    arrays = [(*_arrays(records), y) for records, y in kept]  # each match converted once
+    picks_fit = []
+    for m, (feats, _, _, _) in enumerate(arrays):
+        others = [a for j, a in enumerate(arrays) if j != m] or [arrays[m]]
+        w = _ridge([f for a in others for f in a[0]], np.concatenate([a[1] for a in others]),
+                   np.concatenate([a[3] for a in others]), l2)
         picks_fit.append(np.array([int(np.argmax(f @ w)) for f in feats]))
-        picks_all.append(np.zeros(len(records), np.int64))
-        ys.append(y)
-        chosen_all.append(chosen)
-        p_all.append(p)
-    y, chosen, p = np.concatenate(ys), np.concatenate(chosen_all), np.concatenate(p_all)
+    chosen, p, y = (np.concatenate([a[i] for a in arrays]) for i in (1, 2, 3))
     fitted_picks = np.concatenate(picks_fit)
-    feats, chosen_every, _, _ = _arrays([r for rs, _ in kept for r in rs])
-    weights = _ridge(feats, chosen_every, y, l2)
+    weights = _ridge([f for a in arrays for f in a[0]], chosen, y, l2)
     return FitReport(
         weights=tuple(float(w) for w in weights), records=len(y), matches=len(kept),
-        fitted=_ips(fitted_picks, chosen, p, y), helios=_ips(np.concatenate(picks_all), chosen,
-                                                            p, y),
+        fitted=_ips(fitted_picks, chosen, p, y), helios=_ips(np.zeros_like(chosen), chosen, p, y),
         played=(float(y.mean()), float(y.std() / math.sqrt(len(y)))),
         agreement=float((fitted_picks == 0).mean()),
     )

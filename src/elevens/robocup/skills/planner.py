@@ -26,14 +26,13 @@ CATEGORIES = ("hold", "dribble", "pass", "shoot", "clear", "move", "none")
 @dataclasses.dataclass(frozen=True)
 class Situation:
     """The asking player's world model when it searched (the request's ``state``): the cycle,
-    whether we play on the left, the score (ours, theirs), and the ball, the player and the
-    opponents seen (f32 [2], [2], [n, 2]) in librcsc's coordinates (we attack +x)."""
+    whether we play on the left, the score (ours, theirs), and the ball and the opponents
+    seen (f32 [2], [n, 2]) in librcsc's coordinates (we attack +x)."""
 
     cycle: int
     left: bool
     score: tuple[int, int]
     ball: np.ndarray
-    me: np.ndarray
     opponents: np.ndarray
 
     @staticmethod
@@ -51,7 +50,7 @@ class Situation:
         return Situation(
             cycle=int(wm.cycle or 0), left=wm.our_side != 2,  # Side.RIGHT
             score=(int(wm.our_team_score or 0), int(wm.their_team_score or 0)),
-            ball=np.array(xy(wm.ball), np.float32), me=np.array(xy(wm.myself), np.float32),
+            ball=np.array(xy(wm.ball), np.float32),
             opponents=np.array(opponents, np.float32).reshape(-1, 2),
         )
 
@@ -114,13 +113,22 @@ class Candidates:
 
     def first_actions(self) -> np.ndarray:
         """int32 [k]: the row of each node's chain's first action (what the proxy plays)."""
+        return self._chains()[0]
+
+    def depths(self) -> np.ndarray:
+        """int32 [k]: the actions in each node's chain (1: a first action)."""
+        return self._chains()[1]
+
+    def _chains(self) -> tuple[np.ndarray, np.ndarray]:
         row = {int(i): r for r, i in enumerate(self.index)}
         first = np.arange(len(self), dtype=np.int32)
+        depth = np.ones(len(self), dtype=np.int32)
         for r in range(len(self)):
             p, seen = int(self.parent[r]), 0
             while p in row and seen < len(self):  # a malformed cycle cannot hang us
                 first[r], p, seen = row[p], int(self.parent[row[p]]), seen + 1
-        return first
+            depth[r] += seen
+        return first, depth
 
 
 #: A chooser: the asking player's shirt number and the candidates to the ``index`` of the

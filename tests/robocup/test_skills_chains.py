@@ -214,8 +214,48 @@ def test_a_fit_finds_a_planted_preference_and_estimates_it_held_out() -> None:
     assert report.weights[COL["first_shoot"]] > 0.5 and report.records == 2400
     assert report.matches == 4 and report.agreement < 0.9
     assert report.fitted[0] - 2 * report.fitted[1] > report.helios[0] + 2 * report.helios[1]
+    assert report.gain[0] > 3 * report.gain[1]
+    assert report.gain[0] == pytest.approx(report.fitted[0] - report.helios[0])
+    # A margin above every predicted gain plays helios's choice, and gains nothing.
+    cautious = fit_chooser(matches, margin=10.0)
+    assert cautious.agreement == 1.0 and cautious.gain == (0.0, 0.0)
     with pytest.raises(ValueError, match="no labelled record"):
         fit_chooser([(matches[0][0], np.full(600, np.nan))])
+
+
+def test_a_feature_that_marks_the_moment_not_the_choice_earns_no_weight() -> None:
+    # Where the ball is well placed every row's end_x is high and so is the outcome, and
+    # helios's choice (row 0, played most) has the highest end_x: a regression on the chosen
+    # row's features alone credits end_x; the choice itself changes nothing.
+    rng = np.random.default_rng(3)
+    explore, k = 0.3, 4
+    matches = []
+    for _ in range(3):
+        records, labels = [], []
+        for _ in range(800):
+            moment = rng.normal(0, 1)
+            feats = np.zeros((k, len(FEATURES)))
+            feats[:, COL["evaluation"]] = -np.arange(k) * 0.1
+            feats[:, COL["end_x"]] = moment + np.linspace(0.3, 0, k) + rng.normal(0, 0.1, k)
+            chosen = int(rng.integers(k)) if rng.random() < explore else 0
+            p = (1 - explore) * (chosen == 0) + explore / k
+            records.append({"features": feats.tolist(), "chosen": chosen, "greedy": 0, "p": p})
+            labels.append(moment + rng.normal(0, 0.2))
+        matches.append((records, np.asarray(labels)))
+    report = fit_chooser(matches, l2=1.0)
+    assert abs(report.weights[COL["end_x"]]) < 0.15
+    assert abs(report.gain[0]) < 3 * report.gain[1] + 0.02
+
+
+def test_a_margin_keeps_helios_choice_unless_another_scores_that_much_more() -> None:
+    c = Candidates.of(_pairs(_NODES))  # evaluations 30, 35, 50: helios plays the shot (2)
+    weights = np.zeros(len(FEATURES))
+    weights[COL["last_pass"]] = 1.0  # the pass (1) scores 1, the others 0
+    assert ChainChooser(ChooserSpec(weights=tuple(weights), top_k=3))(10, c) == 1
+    assert ChainChooser(ChooserSpec(weights=tuple(weights), top_k=3, margin=0.5))(10, c) == 1
+    assert ChainChooser(ChooserSpec(weights=tuple(weights), top_k=3, margin=1.0))(10, c) == 2
+    with pytest.raises(ValueError, match="margin -1.0 is invalid"):
+        ChooserSpec(margin=-1.0)
 
 
 def test_match_folders_need_records_and_one_game_log(tmp_path: Path) -> None:

@@ -81,6 +81,7 @@ NUMERIC_RANGES: dict[str, tuple[float, float]] = {
     "top_k": (1, math.inf),
     "explore": (0.0, 1.0),
     "l2": (0.0, math.inf),
+    "margin": (0.0, math.inf),
 }
 """Every numeric field of the subcommands' args, by name (tests/test_cli.py checks that none is
 missing). Finer checks that need the game (``--view`` against the players) come later."""

@@ -190,7 +190,8 @@ class ChainsFitArgs:
     """Fit a chain chooser's weights on the matches an exploring chooser recorded: each
     choice's outcome read from its match's game log (the possession value 50 cycles on less
     the value then; a goal in between counts +1 or -1), a ridge regression on the chosen
-    chains' features, and estimates on each match held out in turn."""
+    chain's features less its search's mean (with that mean beside them, each choice weighed by
+    the inverse of its probability), and estimates on each match held out in turn."""
 
     matches: tuple[str, ...]
     """Match folders, each the --record-dir of one match (its records and its .rcg)."""
@@ -204,6 +205,8 @@ class ChainsFitArgs:
     """The ridge penalty."""
     top_k: int = 4
     """The fitted chooser's top-k (the exploring one's)."""
+    margin: float = 0.0
+    """Play helios-base's best chain unless another's predicted outcome beats it by more."""
 
 
 def chains_fit(args: ChainsFitArgs) -> None:
@@ -225,10 +228,11 @@ def chains_fit(args: ChainsFitArgs) -> None:
     values = possession_values(logs + extra, args.team)
     labelled = [(records, label_records(records, log, args.team, values))
                 for (records, _), log in zip(found, logs, strict=True)]
-    report = fit_chooser(labelled, args.l2)
+    report = fit_chooser(labelled, args.l2, args.margin)
     fit = {**report.as_dict(), "matches_fitted": list(args.matches), "l2": args.l2,
            "values": np.round(values, 4).tolist()}
-    save_chooser(args.out, ChooserSpec(weights=report.weights, top_k=args.top_k, fit=fit))
+    save_chooser(args.out, ChooserSpec(weights=report.weights, top_k=args.top_k,
+                                       margin=args.margin, fit=fit))
     print(json_lib.dumps({k: v for k, v in fit.items() if k != "values"}))
 
 

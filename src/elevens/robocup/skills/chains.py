@@ -13,9 +13,11 @@ game log, so that a better score can be fitted offline:
   which team touched it last;
 - :func:`label_records`: what each recorded choice led to, the value :data:`LABEL_HORIZON`
   cycles later less the value when it was made (a goal in between: +1 or -1 less it);
-- :func:`fit_chooser`: a ridge regression of those outcomes on the chosen chains' features,
-  with an inverse-propensity estimate of how the fitted choice and helios's would have done on
-  matches it was not fitted on.
+- :func:`fit_chooser`: a ridge regression of those outcomes on the chosen chain's features less
+  the mean of its search's top rows (what the choice changed), with that mean beside them (what
+  the moment was), each choice weighed by the inverse of its probability so that the chosen row
+  is uniform among the top rows; and an inverse-propensity estimate of how the fitted choice
+  and helios's would have done on matches it was not fitted on, and of the difference.
 
 A chooser is a JSON file (``format: elevens-chain-chooser``), played as a skills team by its
 path: ``elevens robocup match --team0 chooser.json ...``.
@@ -132,12 +134,15 @@ def helios_weights() -> tuple[float, ...]:
 @dataclasses.dataclass(frozen=True)
 class ChooserSpec:
     """A chooser's file: ``weights`` (one per :data:`FEATURES`), the ``top_k`` chains of
-    helios's evaluation it picks among, how often it plays a uniform one of them instead
+    helios's evaluation it picks among, by how much another chain's score must exceed that of
+    helios's best for it to be played instead (``margin``, in the score's units: for fitted
+    weights, the predicted outcome), how often it plays a uniform one of them instead
     (``explore``, with the generator ``seed``), where it records its choices (``record_dir``,
     None: nowhere), and how it was fitted (``fit``: free-form, kept with it)."""
 
     weights: tuple[float, ...] = dataclasses.field(default_factory=helios_weights)
     top_k: int = 4
+    margin: float = 0.0
     explore: float = 0.0
     seed: int = 0
     record_dir: str | None = None
@@ -149,6 +154,8 @@ class ChooserSpec:
                              f"{len(FEATURES)} finite numbers, one per feature)")
         if not isinstance(self.top_k, int) or self.top_k < 1:
             raise ValueError(f"top_k {self.top_k!r} is invalid (allowed: an integer >= 1)")
+        if not (math.isfinite(self.margin) and self.margin >= 0.0):
+            raise ValueError(f"margin {self.margin!r} is invalid (allowed: a number >= 0)")
         if not 0.0 <= self.explore <= 1.0:
             raise ValueError(f"explore {self.explore!r} is invalid (allowed: 0 to 1)")
 
@@ -215,7 +222,7 @@ class ChainChooser:
             return -1
         phi = chain_features(c, unum)
         top = np.argsort(-c.evaluation, kind="stable")[: self.spec.top_k]
-        greedy = int(np.argmax(phi[top] @ self.weights))
+        greedy = _pick(phi[top], self.weights, self.spec.margin)
         with self._lock:
             explores = self.spec.explore > 0 and self._rng.random() < self.spec.explore
             chosen = int(self._rng.integers(len(top))) if explores else greedy
@@ -231,6 +238,14 @@ class ChainChooser:
             with self._lock:
                 self._out.write(json.dumps(line) + "\n")
         return int(c.index[top[chosen]])
+
+
+def _pick(features: np.ndarray, weights: np.ndarray, margin: float) -> int:
+    """The row of the highest score, or row 0 (helios's best) unless another beats it by
+    more than ``margin``."""
+    score = features @ weights
+    best = int(np.argmax(score))
+    return best if score[best] - score[0] > margin else 0
 
 
 # ---- learning from the records and the game logs ----
@@ -320,14 +335,15 @@ def match_records(folders: Sequence[str]) -> list[tuple[list[dict[str, Any]], Pa
 class FitReport:
     """What a fit found: ``weights``; the records used; on the matches held out in turn, the
     inverse-propensity estimate (mean outcome a choice, with its standard error) of the
-    fitted choice, of helios's and of the choices played, and how often the fitted choice is
-    helios's."""
+    fitted choice, of helios's, of their difference on the same choices (``gain``) and of the
+    choices played, and how often the fitted choice is helios's."""
 
     weights: tuple[float, ...]
     records: int
     matches: int
     fitted: tuple[float, float]
     helios: tuple[float, float]
+    gain: tuple[float, float]
     played: tuple[float, float]
     agreement: float
 
@@ -343,25 +359,39 @@ def _arrays(records: Sequence[dict[str, Any]]) -> tuple[list[np.ndarray], np.nda
     return feats, chosen, p
 
 
-def _ridge(feats: list[np.ndarray], chosen: np.ndarray, y: np.ndarray, l2: float) -> np.ndarray:
-    x = np.stack([f[c] for f, c in zip(feats, chosen, strict=True)])
-    x = np.concatenate([x, np.ones((len(x), 1))], axis=1)  # a bias, not a score
+def _ridge(feats: list[np.ndarray], chosen: np.ndarray, p: np.ndarray, y: np.ndarray,
+           l2: float) -> np.ndarray:
+    """The weights on the chosen row's features less its record's mean row. The mean row
+    stands beside them for the moment itself (a choice made where the ball is well placed
+    looks good whatever it was), and each record weighs 1 / (rows x p), as if every row had
+    been chosen alike: helios's own choice, played most often, is the one most confounded with
+    its moment."""
+    mean = np.stack([f.mean(axis=0) for f in feats])
+    rows = np.array([len(f) for f in feats], np.float64)
+    x = np.stack([f[c] for f, c in zip(feats, chosen, strict=True)]) - mean
+    d = x.shape[1]
+    x = np.concatenate([x, mean, np.ones((len(x), 1))], axis=1)  # a bias, not a score
+    sw = 1.0 / (rows * p)
     reg = l2 * np.eye(x.shape[1])
     reg[-1, -1] = 0.0
-    return np.linalg.solve(x.T @ x + reg, x.T @ y)[:-1]
+    xw = x * sw[:, None]
+    return np.linalg.solve(xw.T @ x + reg, xw.T @ y)[:d]
 
 
-def _ips(picks: np.ndarray, chosen: np.ndarray, p: np.ndarray, y: np.ndarray
-         ) -> tuple[float, float]:
+def _ips(picks: np.ndarray, chosen: np.ndarray, p: np.ndarray, y: np.ndarray,
+         baseline: np.ndarray | None = None) -> tuple[float, float]:
     terms = (picks == chosen) / p * y
+    if baseline is not None:  # the difference on the same choices: their noise cancels
+        terms = terms - (baseline == chosen) / p * y
     return float(terms.mean()), float(terms.std() / math.sqrt(max(len(terms), 1)))
 
 
 def fit_chooser(matches: Sequence[tuple[Sequence[dict[str, Any]], np.ndarray]],
-                l2: float = 10.0) -> FitReport:
+                l2: float = 10.0, margin: float = 0.0) -> FitReport:
     """Fit the weights on every match's (records, labels) (records without a label are
-    dropped), and estimate the fitted choice on each match held out in turn from the others'
-    fit. Helios's choice is the top row of each record (its best evaluation)."""
+    dropped), and estimate the fitted choice (with ``margin``) on each match held out in turn
+    from the others' fit. Helios's choice is the top row of each record (its best
+    evaluation)."""
     kept = []
     for records, labels in matches:
         ok = np.isfinite(labels)
@@ -373,15 +403,17 @@ def fit_chooser(matches: Sequence[tuple[Sequence[dict[str, Any]], np.ndarray]],
     picks_fit = []
     for m, (feats, _, _, _) in enumerate(arrays):
         others = [a for j, a in enumerate(arrays) if j != m] or [arrays[m]]
-        w = _ridge([f for a in others for f in a[0]], np.concatenate([a[1] for a in others]),
-                   np.concatenate([a[3] for a in others]), l2)
-        picks_fit.append(np.array([int(np.argmax(f @ w)) for f in feats]))
+        chosen_o, p_o, y_o = (np.concatenate([a[i] for a in others]) for i in (1, 2, 3))
+        w = _ridge([f for a in others for f in a[0]], chosen_o, p_o, y_o, l2)
+        picks_fit.append(np.array([_pick(f, w, margin) for f in feats], np.int64))
     chosen, p, y = (np.concatenate([a[i] for a in arrays]) for i in (1, 2, 3))
     fitted_picks = np.concatenate(picks_fit)
-    weights = _ridge([f for a in arrays for f in a[0]], chosen, y, l2)
+    helios = np.zeros_like(chosen)
+    weights = _ridge([f for a in arrays for f in a[0]], chosen, p, y, l2)
     return FitReport(
         weights=tuple(float(w) for w in weights), records=len(y), matches=len(kept),
-        fitted=_ips(fitted_picks, chosen, p, y), helios=_ips(np.zeros_like(chosen), chosen, p, y),
+        fitted=_ips(fitted_picks, chosen, p, y), helios=_ips(helios, chosen, p, y),
+        gain=_ips(fitted_picks, chosen, p, y, baseline=helios),
         played=(float(y.mean()), float(y.std() / math.sqrt(len(y)))),
         agreement=float((fitted_picks == 0).mean()),
     )

@@ -85,6 +85,11 @@ def test_features_of_a_search_seen_from_the_asking_player() -> None:
     # Without the state: the ball at the centre, no opponent seen.
     bare = chain_features(Candidates.of(_pairs(_NODES)), unum=10)
     assert bare[:, COL["end_opponent_distance"]].tolist() == [2.0, 2.0, 2.0]
+    # A chain helios rules out (-inf, as a lone hold came in a match) is far below, not NaN.
+    ruled_out = [(0, -1, 0, -np.inf, (5.0, 0.0))]
+    assert chain_features(Candidates.of(_pairs(ruled_out)))[0, COL["evaluation"]] == -10.0
+    mixed = chain_features(Candidates.of(_pairs([*_NODES[:2], (2, 1, 3, -np.inf, (9.0, 0.0))])))
+    np.testing.assert_allclose(mixed[:, COL["evaluation"]], [-0.5, 0.0, -10.0])
 
 
 def test_the_starting_weights_choose_as_helios_base_does() -> None:
@@ -209,6 +214,9 @@ def test_a_fit_finds_a_planted_preference_and_estimates_it_held_out() -> None:
             p = (1 - explore) * (chosen == 0) + explore / k
             records.append({"features": feats.tolist(), "chosen": chosen, "greedy": 0, "p": p})
             labels.append(feats[chosen, COL["first_shoot"]] + rng.normal(0, 0.5))
+        # One record of an older chooser, whose ruled-out chain gave a NaN feature: dropped.
+        records.append({"features": [[np.nan] * len(FEATURES)], "chosen": 0, "greedy": 0, "p": 1})
+        labels.append(0.0)
         matches.append((records, np.asarray(labels)))
     report = fit_chooser(matches)
     assert report.weights[COL["first_shoot"]] > 0.5 and report.records == 2400
@@ -220,7 +228,7 @@ def test_a_fit_finds_a_planted_preference_and_estimates_it_held_out() -> None:
     cautious = fit_chooser(matches, margin=10.0)
     assert cautious.agreement == 1.0 and cautious.gain == (0.0, 0.0)
     with pytest.raises(ValueError, match="no labelled record"):
-        fit_chooser([(matches[0][0], np.full(600, np.nan))])
+        fit_chooser([(matches[0][0], np.full(len(matches[0][0]), np.nan))])
 
 
 def test_a_feature_that_marks_the_moment_not_the_choice_earns_no_weight() -> None:

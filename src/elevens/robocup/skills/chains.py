@@ -59,6 +59,8 @@ FORMAT = "elevens-chain-chooser"
 EVAL_SCALE = 10.0
 """The evaluation feature's divisor (helios's top four of a search lie within about 1.3 of its
 best, median of one match; a fitted chooser's weights are on this scale)."""
+EVAL_FLOOR = 10.0
+"""The evaluation feature's least value (a chain helios rules out: -inf)."""
 HALF_LENGTH, HALF_WIDTH = 52.5, 34.0
 _KINDS = CATEGORIES[:6]  # hold, dribble, pass, shoot, clear, move ("none" is never a node)
 
@@ -103,7 +105,11 @@ def chain_features(c: Candidates, unum: int = 0) -> np.ndarray:
     situation = c.situation
     ball_now = np.zeros(2, np.float32) if situation is None else situation.ball
     opponents = np.zeros((0, 2), np.float32) if situation is None else situation.opponents
-    out[:, col["evaluation"]] = (c.evaluation - c.evaluation.max()) / EVAL_SCALE
+    # helios rates a chain it rules out -inf (a lone hold of a search, say): far below, not NaN
+    finite = np.isfinite(c.evaluation)
+    best = c.evaluation[finite].max() if finite.any() else 0.0
+    below = np.where(finite, c.evaluation - best, -np.inf) / EVAL_SCALE
+    out[:, col["evaluation"]] = np.maximum(below, -EVAL_FLOOR)
     for j, kind in enumerate(_KINDS):
         out[:, col[f"first_{kind}"]] = c.category[first] == j
         out[:, col[f"last_{kind}"]] = c.category == j
@@ -388,13 +394,14 @@ def _ips(picks: np.ndarray, chosen: np.ndarray, p: np.ndarray, y: np.ndarray,
 
 def fit_chooser(matches: Sequence[tuple[Sequence[dict[str, Any]], np.ndarray]],
                 l2: float = 10.0, margin: float = 0.0) -> FitReport:
-    """Fit the weights on every match's (records, labels) (records without a label are
-    dropped), and estimate the fitted choice (with ``margin``) on each match held out in turn
-    from the others' fit. Helios's choice is the top row of each record (its best
-    evaluation)."""
+    """Fit the weights on every match's (records, labels) (records without a label, or with
+    a feature that is not finite, are dropped), and estimate the fitted choice (with
+    ``margin``) on each match held out in turn from the others' fit. Helios's choice is the
+    top row of each record (its best evaluation)."""
     kept = []
     for records, labels in matches:
-        ok = np.isfinite(labels)
+        ok = np.isfinite(labels) & np.array(
+            [bool(np.isfinite(r["features"]).all()) for r in records], bool)
         kept.append(([r for r, k in zip(records, ok, strict=True) if k], labels[ok]))
     kept = [(r, y) for r, y in kept if len(r)]
     if not kept:

@@ -200,6 +200,13 @@ def test_possession_values_and_outcomes_from_a_game_log() -> None:
     assert np.isnan(y[2])
 
 
+def _explored(rng: np.random.Generator, feats: np.ndarray, explore: float) -> dict[str, Any]:
+    """The record of an exploring chooser's choice among ``feats``' rows (helios's: row 0)."""
+    chosen = int(rng.integers(len(feats))) if rng.random() < explore else 0
+    p = (1 - explore) * (chosen == 0) + explore / len(feats)
+    return {"features": feats.tolist(), "chosen": chosen, "greedy": 0, "p": p}
+
+
 def test_a_fit_finds_a_planted_preference_and_estimates_it_held_out() -> None:
     rng = np.random.default_rng(2)
     explore, k = 0.4, 3
@@ -210,10 +217,8 @@ def test_a_fit_finds_a_planted_preference_and_estimates_it_held_out() -> None:
             feats = rng.normal(0, 1, (k, len(FEATURES))) * 0.3
             feats[:, COL["evaluation"]] = -np.arange(k) * 0.1  # helios's order: row 0 first
             feats[:, COL["first_shoot"]] = rng.random(k) < 0.3
-            chosen = int(rng.integers(k)) if rng.random() < explore else 0
-            p = (1 - explore) * (chosen == 0) + explore / k
-            records.append({"features": feats.tolist(), "chosen": chosen, "greedy": 0, "p": p})
-            labels.append(feats[chosen, COL["first_shoot"]] + rng.normal(0, 0.5))
+            records.append(_explored(rng, feats, explore))
+            labels.append(feats[records[-1]["chosen"], COL["first_shoot"]] + rng.normal(0, 0.5))
         # One record of an older chooser, whose ruled-out chain gave a NaN feature: dropped.
         records.append({"features": [[np.nan] * len(FEATURES)], "chosen": 0, "greedy": 0, "p": 1})
         labels.append(0.0)
@@ -245,9 +250,7 @@ def test_a_feature_that_marks_the_moment_not_the_choice_earns_no_weight() -> Non
             feats = np.zeros((k, len(FEATURES)))
             feats[:, COL["evaluation"]] = -np.arange(k) * 0.1
             feats[:, COL["end_x"]] = moment + np.linspace(0.3, 0, k) + rng.normal(0, 0.1, k)
-            chosen = int(rng.integers(k)) if rng.random() < explore else 0
-            p = (1 - explore) * (chosen == 0) + explore / k
-            records.append({"features": feats.tolist(), "chosen": chosen, "greedy": 0, "p": p})
+            records.append(_explored(rng, feats, explore))
             labels.append(moment + rng.normal(0, 0.2))
         matches.append((records, np.asarray(labels)))
     report = fit_chooser(matches, l2=1.0)

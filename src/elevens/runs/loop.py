@@ -261,11 +261,14 @@ def open_run(
                 make_learner(learner, env, team_on_field, devices=config.run.devices)
                 if host is None else host.make_learner(learner, env)
             )
-        fresh = learners[config.learner.env.scenario].init(jax.random.key(config.run.seed), start)
-        resumed = Resumed(state=fresh)
-        if latest is not None:
+        init = learners[config.learner.env.scenario].init
+        key = jax.random.key(config.run.seed)
+        if latest is None:
+            resumed = Resumed(state=init(key, start))
+        else:  # shapes are all a restore needs: random networks would cost seconds, unused
             resumed = _restore(
-                checkpointer, config, fresh, latest, damage, resume_from_last_good, layout
+                checkpointer, config, jax.eval_shape(init, key), latest, damage,
+                resume_from_last_good, layout,
             )
     except BaseException:
         # Closed here, not left to the garbage collector with Orbax's background thread.
@@ -296,7 +299,7 @@ def _resume_damage(checkpointer: Any, config: TrainConfig) -> Exception | None:
 
 
 def _restore(
-    checkpointer: Any, config: TrainConfig, fresh: TrainState, latest: int,
+    checkpointer: Any, config: TrainConfig, target: TrainState, latest: int,
     damage: Exception | None, resume_from_last_good: bool, layout: RunLayout,
 ) -> Resumed:
     """The latest checkpoint, or with ``resume_from_last_good`` the newest intact one."""
@@ -305,15 +308,15 @@ def _restore(
     fallback = ""
     if damage is None:
         try:
-            state, _, meta = checkpointer.restore(fresh)
+            state, _, meta = checkpointer.restore(target)
         except CheckpointError as error:
             damage = error
     if damage is not None:
         step = last_good_step(
-            checkpointer, fresh, latest, damage, resume_from_last_good, layout.root
+            checkpointer, target, latest, damage, resume_from_last_good, layout.root
         )
         check_resumable(checkpointer, config, step)
-        state, _, meta = checkpointer.restore(fresh, step)
+        state, _, meta = checkpointer.restore(target, step)
         fallback = (
             f"checkpoint {latest} is damaged ({damage}); resumed from checkpoint "
             f"{step}, the damaged ones are in {layout.damaged}"

@@ -9,6 +9,7 @@ import types
 from typing import Any
 
 import numpy as np
+import pytest
 
 from elevens.robocup.skills import naive
 from elevens.robocup.skills.naive import SkillsNaive, skills_naive
@@ -154,3 +155,33 @@ def test_helios_parts_follow_librcscs_kickable_not_the_decided_kind() -> None:
     only_ball = naive.helios_parts(naive.Decisions.of(np.array(kinds)), kickable, off_ball=False)
     assert only_ball.kind.tolist() == [Kind.PLANNER, Kind.PASS, Kind.PLANNER, Kind.INTERCEPT,
                                        Kind.GOALIE, Kind.GO_TO]
+
+
+def test_pressing_sends_only_near_players_at_their_ball_and_changes_nothing_else() -> None:
+    """``skills_helios_press`` is ``skills_helios_parts`` but where ``pressing`` picks a
+    player helios-base's basic move would have moved: there it runs at the ball. Pressing
+    needs their ball, no teammate's, and a reach within ``press`` cycles of our fastest."""
+    parts = naive.SkillsPlanner(on_ball=True, off_ball=True)
+    press = naive.SkillsPlanner(on_ball=True, off_ball=True, press=3)
+    assert is_rowwise(press)
+    counted = {"pressed": 0, "same": 0}
+    for states in _cycles(30):
+        obs = observe(states)
+        picked = naive.pressing(obs, 3)
+        theirs = obs.kickable_opp | (obs.opp_reach < np.minimum(obs.self_reach, obs.mate_reach))
+        assert not (picked & ~theirs).any() and not (picked & obs.kickable_mate).any()
+        assert (obs.self_reach[picked] <= obs.mate_reach[picked] + 3).all()
+        assert not (picked & obs.goalie).any()
+        assert (naive.pressing(obs, 1) <= picked).all()  # fewer press with less slack
+        for row, (p, q) in enumerate(zip(parts(states), press(states), strict=True)):
+            if picked[row] and p.actions[0].helios_basic_move is not None:
+                counted["pressed"] += 1
+                assert q.actions[0].body_intercept is not None
+            else:
+                counted["same"] += 1
+                assert p == q
+    assert min(counted.values()) > 0
+    with pytest.raises(ValueError, match="press=-1 is invalid"):
+        naive.SkillsPlanner(on_ball=True, off_ball=True, press=-1)
+    with pytest.raises(ValueError, match="press=2 is invalid"):
+        naive.SkillsPlanner(on_ball=True, off_ball=False, press=2)

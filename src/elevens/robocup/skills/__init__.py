@@ -71,13 +71,16 @@ def _helios(**kwargs: Any) -> Callable[[str], Decide]:
 #: ``skills_planner_ours`` the same with the choice among the planner's chains made here
 #: (helios-base's own choice, through ``GetBestPlannerAction``: the path a learned chooser
 #: takes); ``skills_helios_move`` is ``skills_naive`` with helios-base's off-ball play, and
-#: ``skills_helios_parts`` takes both (the goalie and set plays are the proxy's routines in all).
+#: ``skills_helios_parts`` takes both (the goalie and set plays are the proxy's routines in all);
+#: ``skills_helios_press`` is ``skills_helios_parts`` with a second player pressing their ball
+#: (``naive.pressing``), a yardstick of what the off-ball choice of who runs at it is worth.
 SKILLS: dict[str, Callable[[str], Decide]] = {
     "skills_naive": lambda set_plays: skills_naive if set_plays == "routine" else SkillsNaive(),
     "skills_planner": _helios(),
     "skills_planner_ours": _helios(choose=helios_best),
     "skills_helios_move": _helios(on_ball=False, off_ball=True),
     "skills_helios_parts": _helios(on_ball=True, off_ball=True),
+    "skills_helios_press": _helios(on_ball=True, off_ball=True, press=3),
     "skills_random": _simulator_team("skills_random"),
     "skills_naive_sim": _simulator_team("skills_naive_sim"),
 }

@@ -316,14 +316,15 @@ def skills_naive_decisions(obs: Observation, set_plays: str = "routine") -> Deci
 
 def _naive_answers(states: Sequence[Any], set_plays: str, guard: TakerGuard | None = None,
                    planner: bool = False, chooses_chains: bool = False,
-                   helios_move: bool = False) -> list[Any]:
+                   helios_move: bool = False, press: int = 0) -> list[Any]:
     """The proxy's States of a cycle to ``skills_naive``'s PlayerActions. When every row plays
     a routine (outside play on and our decided set plays, the goalie, a penalty) open play is
     not decided: none of it reaches the answers (the routine's kind replaces it, the kick-off
     spot its point). With ``planner`` helios-base's planner takes every open-play kick
     (``Kind.PLANNER`` for SHOOT, PASS, DRIBBLE and HOLD), the choice among its chains ours
     with ``chooses_chains``; with ``helios_move`` helios-base's off-ball play takes every
-    open-play move (``Kind.HELIOS_MOVE`` for INTERCEPT, GO_TO, MARK and TACKLE)."""
+    open-play move (``Kind.HELIOS_MOVE`` for INTERCEPT, GO_TO, MARK and TACKLE); with
+    ``press`` (cycles) those moves :func:`pressing` picks run at the ball instead."""
     obs = observe(states)
     if routine_rows(obs, set_plays).all():
         n = len(obs)
@@ -336,7 +337,21 @@ def _naive_answers(states: Sequence[Any], set_plays: str, guard: TakerGuard | No
         decisions, _ = guard.apply(obs, decisions)
     if planner or helios_move:
         decisions = helios_parts(decisions, obs.kickable, on_ball=planner, off_ball=helios_move)
+    if press:
+        kind = np.where(pressing(obs, press) & (decisions.kind == _HELIOS_MOVE), _INTERCEPT,
+                        decisions.kind)
+        decisions = Decisions.of(kind, decisions.index, decisions.point)
     return to_player_actions(decisions, obs, chooses_chains)
+
+
+def pressing(obs: Observation, press: int) -> np.ndarray:
+    """bool [n]: the outfield players without the ball who press theirs: an opponent is at
+    the ball first (it can kick it, or reaches it before any of us), no teammate can kick it,
+    and this player reaches it within ``press`` cycles of our fastest other player, so a
+    second player closes in beside the one helios-base's basic move sends."""
+    theirs = obs.kickable_opp | (obs.opp_reach < np.minimum(obs.self_reach, obs.mate_reach))
+    near = obs.self_reach <= obs.mate_reach + press
+    return theirs & near & ~obs.kickable_mate & ~obs.kickable & ~obs.goalie
 
 
 def helios_parts(decisions: Decisions, kickable: np.ndarray, rows: np.ndarray | None = None, *,
@@ -374,19 +389,23 @@ class SkillsPlanner:
     ``choose_chain``, ``planner.Choose``)."""
 
     def __init__(self, choose: Choose | None = None, *, on_ball: bool = True,
-                 off_ball: bool = False) -> None:
+                 off_ball: bool = False, press: int = 0) -> None:
+        if press < 0 or (press and not off_ball):
+            raise ValueError(f"press={press!r} is invalid (allowed: 0, or a number of cycles "
+                             ">= 1 with off_ball=True)")
         if choose is not None:
             if not on_ball:
                 raise ValueError("a chain chooser without the planner on the ball "
                                  "(allowed: on_ball=True with choose)")
             self.choose_chain = choose
         self.chooses = choose is not None
-        self.on_ball, self.off_ball = on_ball, off_ball
+        self.on_ball, self.off_ball, self.press = on_ball, off_ball, press
         rowwise(self)
 
     def __call__(self, states: Sequence[Any]) -> list[Any]:
         return _naive_answers(states, "routine", planner=self.on_ball,
-                              chooses_chains=self.chooses, helios_move=self.off_ball)
+                              chooses_chains=self.chooses, helios_move=self.off_ball,
+                              press=self.press)
 
 
 #: What the on-ball decision is worth against helios-base.

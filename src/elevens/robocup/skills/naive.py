@@ -227,9 +227,7 @@ def naive_choices(obs: Observation, xp: Any = np,
     kind = put(tackle, _TACKLE, kind)
     # While they have the ball, the one or two outfield players nearest it (after the
     # interceptor) stand between it and our goal.
-    theirs = ~obs.kickable_mate & (
-        obs.kickable_opp | (obs.opp_reach < xp.minimum(obs.self_reach, obs.mate_reach))
-    )
+    theirs = their_ball(obs, xp)
     others = obs.mates_valid & (xp.arange(PLAYERS) > 0)[None]  # outfield teammates, me too
     ball_dist = _norm(obs.mates - obs.ball[:, None], xp)
     rank = (others & (ball_dist < _norm(obs.pos - obs.ball, xp)[:, None])).sum(1)
@@ -344,14 +342,21 @@ def _naive_answers(states: Sequence[Any], set_plays: str, guard: TakerGuard | No
     return to_player_actions(decisions, obs, chooses_chains)
 
 
+def their_ball(obs: Observation, xp: Any = np) -> Any:
+    """bool [n]: the ball is theirs for this player: no teammate can kick it, and an opponent
+    can or reaches it before any of us."""
+    return ~obs.kickable_mate & (
+        obs.kickable_opp | (obs.opp_reach < xp.minimum(obs.self_reach, obs.mate_reach))
+    )
+
+
 def pressing(obs: Observation, press: int) -> np.ndarray:
     """bool [n]: the outfield players without the ball who press theirs: an opponent is at
     the ball first (it can kick it, or reaches it before any of us), no teammate can kick it,
     and this player reaches it within ``press`` cycles of our fastest other player, so a
     second player closes in beside the one helios-base's basic move sends."""
-    theirs = obs.kickable_opp | (obs.opp_reach < np.minimum(obs.self_reach, obs.mate_reach))
     near = obs.self_reach <= obs.mate_reach + press
-    return theirs & near & ~obs.kickable_mate & ~obs.kickable & ~obs.goalie
+    return their_ball(obs) & near & ~obs.kickable & ~obs.goalie
 
 
 def helios_parts(decisions: Decisions, kickable: np.ndarray, rows: np.ndarray | None = None, *,
